@@ -1,0 +1,26 @@
+"""Compose the Hydra config for a command from the user's overrides."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from hydra import compose, initialize_config_dir
+from hydra.errors import HydraException
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from sigmarl.config import register_configs
+from sigmarl.errors import SigmarlError
+from sigmarl.paths import conf_dir
+
+
+def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:
+    """The resolved config; a bad override raises SigmarlError with Hydra's message (which names the key)."""
+    register_configs()
+    try:
+        with initialize_config_dir(config_dir=str(conf_dir()), version_base=None):
+            cfg = compose(config_name=config_name, overrides=list(overrides))
+        OmegaConf.resolve(cfg)
+    except (HydraException, OmegaConfBaseException) as e:
+        raise SigmarlError(f"bad config override: {e}") from e
+    return cfg

@@ -1,0 +1,112 @@
+"""Structured configs: the schema Hydra validates every override against.
+
+Each dataclass is one config group (conf/<group>/*.yaml picks values for it),
+so a typo in an override fails with Hydra's error naming the key.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING
+
+
+@dataclass
+class MapConfig:
+    """A road map: the CPM Lab map, a procedural test map, or a user's OSM file."""
+
+    name: str = "cpm_intersection"
+    kind: str = "cpm"  # cpm | intersection | on_ramp | roundabout | osm
+    route_set: str = "intersection"  # cpm only: intersection | loops
+    lane_width: float = 0.20  # procedural and OSM maps (CPM is fixed at 0.15)
+    # intersection builder
+    arm_length: float = 1.25
+    n_arms: int = 4
+    # roundabout builder
+    radius: float = 0.55
+    # on-ramp builder
+    n_ramps: int = 2
+    main_length: float = 4.1
+    # OSM file (kind=osm): path, and optional explicit routes as lists of way/lanelet ids
+    path: str = ""
+    routes: list[Any] = field(default_factory=list)
+
+
+@dataclass
+class ObsConfig:
+    """Observation design: the paper's five strategies as flags (all on = M0)."""
+
+    preset: str = "full"
+    ego_view: bool = True  # E
+    vertices: bool = True  # V
+    distance_to_agents: bool = True  # DA
+    distance_to_boundaries: bool = True  # DB
+    distance_to_center_line: bool = True  # DC
+    n_nearest: int = 2  # K observed neighbours
+    n_ref_points: int = 3  # short-term reference points
+    ref_point_stride: int = 2  # resampled points between reference points (2 x 0.08 m)
+    noise: float = 0.02  # total width of the zero-mean uniform noise on every entry
+
+
+@dataclass
+class EnvConfig:
+    n_agents: int = 4
+    mode: str = "train"  # train | test
+    max_steps: int = 128  # episode length (train: 128, test: 1200)
+    num_envs: int = 32
+
+
+@dataclass
+class NetworkConfig:
+    hidden: list[int] = field(default_factory=lambda: [256, 256])
+    activation: str = "tanh"
+    scale_floor: float = 1e-4
+    shared_critic_value: bool = True  # the paper's critic: one value shared by all agents
+
+
+@dataclass
+class PPOConfig:
+    iterations: int = 250
+    frames_per_iteration: int = 4096  # num_envs x max_steps
+    epochs: int = 60
+    minibatch_size: int = 512
+    lr: float = 2e-4
+    lr_final: float = 1e-5
+    max_grad_norm: float = 1.0
+    clip_epsilon: float = 0.2
+    gamma: float = 0.99
+    lmbda: float = 0.9
+    entropy_coef: float = 1e-4
+    normalize_advantage: bool = False
+    checkpoint_every: int = 5
+
+
+@dataclass
+class TrackingConfig:
+    tracking_uri: str = ""  # empty: MLflow's default (a local SQLite mlflow.db)
+    experiment: str = "sigmarl-ablation"
+    enabled: bool = True
+
+
+@dataclass
+class Config:
+    map: MapConfig = field(default_factory=MapConfig)
+    obs: ObsConfig = field(default_factory=ObsConfig)
+    env: EnvConfig = field(default_factory=EnvConfig)
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+    ppo: PPOConfig = field(default_factory=PPOConfig)
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    seed: int = 0
+    device: str = "cpu"
+    threads: int = 1
+    resume: bool = False
+    run_dir: str = MISSING  # where checkpoints live; set by conf/config.yaml
+
+
+def register_configs() -> None:
+    cs = ConfigStore.instance()
+    cs.store(name="base_config", node=Config)
+    for group, node in [("map", MapConfig), ("obs", ObsConfig), ("network", NetworkConfig), ("ppo", PPOConfig)]:
+        cs.store(group=group, name=f"base_{group}", node=node)

@@ -1,0 +1,1 @@
+"""Traffic environment: a batched VMAS scenario (dynamics, observation, reward, collisions, resets)."""

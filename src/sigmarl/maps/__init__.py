@@ -1,0 +1,28 @@
+"""Road maps: the model, the CPM Lab loader, procedural builders, OSM files."""
+
+from __future__ import annotations
+
+from sigmarl.errors import MapError
+from sigmarl.maps.model import Lanelet, RoadMap, Route
+
+__all__ = ["Lanelet", "MapError", "RoadMap", "Route", "load_map"]
+
+
+def load_map(cfg) -> RoadMap:
+    """Build the RoadMap a `MapConfig` describes."""
+    kind = cfg.kind
+    if kind == "cpm":
+        from sigmarl.maps.cpm import load_cpm
+
+        return load_cpm(cfg.route_set)
+    if kind in ("intersection", "on_ramp", "roundabout"):
+        from sigmarl.maps import builders
+
+        return builders.build(cfg)
+    if kind == "osm":
+        from sigmarl.maps.osm import load_osm
+
+        if not cfg.path:
+            raise MapError("map.kind=osm needs map.path=<file.osm>")
+        return load_osm(cfg.path, lane_width=cfg.lane_width, routes=list(cfg.routes) or None, name=cfg.name)
+    raise MapError(f"unknown map kind {kind!r}; choose cpm, intersection, on_ramp, roundabout or osm")

@@ -1,0 +1,190 @@
+"""Route construction: connectivity checks, corridors, resampling, extension.
+
+Everything here runs once per map; the environment only indexes the results.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+import torch
+
+from sigmarl.errors import MapError
+from sigmarl.maps.model import EXTENSION_LENGTH, RESAMPLE_STEP, Lanelet, Route
+
+_JOIN_TOL = 1e-6  # consecutive polylines sharing an end point
+
+
+def polyline_length(points: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=-1).sum())
+
+
+def join_polylines(parts: Iterable[np.ndarray]) -> np.ndarray:
+    """Concatenate polylines, dropping the duplicated point where one ends and the next starts."""
+    out: list[np.ndarray] = []
+    for part in parts:
+        if out and np.linalg.norm(out[-1][-1] - part[0]) < _JOIN_TOL:
+            part = part[1:]
+        out.append(part)
+    return np.concatenate(out)
+
+
+def resample(points: np.ndarray, step: float = RESAMPLE_STEP, closed: bool = False) -> np.ndarray:
+    """Points at uniform arc length `step` along a polyline, starting at its first point.
+
+    Every point lies on the input polyline, at arc length k*step. An open
+    polyline also keeps its end point (the last gap is shorter than `step`);
+    a closed one stops before wrapping around to its start.
+    """
+    seg = np.diff(points, axis=0)
+    seg_len = np.linalg.norm(seg, axis=-1)
+    keep = seg_len > 0
+    pts = np.concatenate([points[:1], points[1:][keep]])
+    seg, seg_len = seg[keep], seg_len[keep]
+    cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+    total = cum[-1]
+    n = int(np.floor(total / step + 1e-9))
+    s = np.arange(n + 1) * step
+    if closed and total - s[-1] < 1e-9:
+        s = s[:-1]  # the last sample would coincide with the first
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
+    t = (s - cum[i]) / seg_len[i]
+    out = pts[i] + t[:, None] * seg[i]
+    if not closed and total - s[-1] > 1e-9:
+        out = np.concatenate([out, pts[-1:]])
+    return out
+
+
+def extend_straight(points: np.ndarray, length: float, step: float) -> np.ndarray:
+    """Append points continuing the last segment's direction for `length` metres."""
+    direction = points[-1] - points[-2]
+    direction = direction / np.linalg.norm(direction)
+    k = np.arange(1, int(np.ceil(length / step)) + 1)
+    return np.concatenate([points, points[-1] + (k * step)[:, None] * direction])
+
+
+def check_connected(name: str, ids: Sequence[int], lanelets: dict[int, Lanelet], loop: bool) -> None:
+    """Raise MapError naming the route and the first broken link."""
+    for lid in ids:
+        if lid not in lanelets:
+            raise MapError(f"route {name}: lanelet {lid} does not exist in the map")
+    pairs = list(zip(ids[:-1], ids[1:], strict=True))
+    if loop:
+        pairs.append((ids[-1], ids[0]))
+    for a, b in pairs:
+        if b not in lanelets[a].successors:
+            raise MapError(
+                f"route {name}: lanelet {a} is not connected to lanelet {b} "
+                f"(successors of {a}: {lanelets[a].successors or 'none'})"
+            )
+
+
+def corridor_members(lanelet: Lanelet, lanelets: dict[int, Lanelet]) -> tuple[int, int]:
+    """Ids of the leftmost and rightmost same-direction neighbours (the lanelet itself if none)."""
+    left = lanelet
+    seen = {left.id}
+    while left.adj_left is not None and left.adj_left_same and left.adj_left not in seen:
+        left = lanelets[left.adj_left]
+        seen.add(left.id)
+    right = lanelet
+    while right.adj_right is not None and right.adj_right_same and right.adj_right not in seen:
+        right = lanelets[right.adj_right]
+        seen.add(right.id)
+    return left.id, right.id
+
+
+def corridor_groups(lanelets: dict[int, Lanelet]) -> list[list[int]]:
+    """All same-direction lane groups with more than one lanelet, each listed left to right."""
+    groups = []
+    for la in lanelets.values():
+        if la.adj_left is not None and la.adj_left_same:
+            continue  # not the leftmost
+        group = [la.id]
+        cur = la
+        while cur.adj_right is not None and cur.adj_right_same and cur.adj_right not in group:
+            cur = lanelets[cur.adj_right]
+            group.append(cur.id)
+        if len(group) > 1:
+            groups.append(group)
+    return groups
+
+
+def build_route(
+    name: str,
+    ids: Sequence[int],
+    lanelets: dict[int, Lanelet],
+    loop: bool = False,
+    step: float = RESAMPLE_STEP,
+) -> Route:
+    """Precompute one route's tensors from its lanelet sequence."""
+    ids = tuple(int(i) for i in ids)
+    if not ids:
+        raise MapError(f"route {name}: no lanelets")
+    check_connected(name, ids, lanelets, loop)
+    center = join_polylines(lanelets[i].center for i in ids)
+    lefts, rights = [], []
+    for i in ids:
+        lm, rm = corridor_members(lanelets[i], lanelets)
+        lefts.append(lanelets[lm].left)
+        rights.append(lanelets[rm].right)
+    left, right = join_polylines(lefts), join_polylines(rights)
+    if loop:
+        center = join_polylines([center, center[:1]])
+        left = join_polylines([left, left[:1]])
+        right = join_polylines([right, right[:1]])
+    length = polyline_length(center)
+    c_res = resample(center, step, closed=loop)
+    l_res = resample(left, step, closed=loop)
+    r_res = resample(right, step, closed=loop)
+    n_points = len(c_res)
+    entry = np.stack([left[0], right[0]])
+    exit_ = np.stack([left[-1], right[-1]])
+    if not loop:
+        c_res = extend_straight(c_res, EXTENSION_LENGTH, step)
+        l_res = extend_straight(l_res, EXTENSION_LENGTH, step)
+        r_res = extend_straight(r_res, EXTENSION_LENGTH, step)
+        left = extend_straight(left, EXTENSION_LENGTH, EXTENSION_LENGTH)
+        right = extend_straight(right, EXTENSION_LENGTH, EXTENSION_LENGTH)
+
+    def t(a: np.ndarray) -> torch.Tensor:
+        return torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float64)
+
+    return Route(
+        name=name,
+        lanelet_ids=ids,
+        is_loop=loop,
+        center=t(c_res),
+        n_points=n_points,
+        length=length,
+        left=t(left),
+        right=t(right),
+        left_resampled=t(l_res),
+        right_resampled=t(r_res),
+        entry=t(entry),
+        exit=t(exit_),
+    )
+
+
+def enumerate_routes(
+    lanelets: dict[int, Lanelet], entries: Sequence[int] | None = None, max_routes: int = 10_000
+) -> list[list[int]]:
+    """Every lanelet path from an entry (no predecessor) to an exit (no successor), no lanelet twice."""
+    if entries is None:
+        entries = sorted(i for i, la in lanelets.items() if not la.predecessors)
+    paths: list[list[int]] = []
+
+    def walk(path: list[int]) -> None:
+        if len(paths) >= max_routes:
+            raise MapError(f"more than {max_routes} routes: is the lanelet graph malformed?")
+        succ = [s for s in lanelets[path[-1]].successors if s in lanelets]
+        if not succ:
+            paths.append(path)
+            return
+        for s in succ:
+            if s not in path:
+                walk([*path, s])
+
+    for e in entries:
+        walk([e])
+    return paths
