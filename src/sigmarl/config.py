@@ -56,6 +56,11 @@ class EnvConfig:
     mode: str = "train"  # train | test
     max_steps: int = 128  # episode length (train: 128, test: 1200)
     num_envs: int = 32
+    # Where vehicles start (spec section 6): training on non-loop routes from spawn_start_m up
+    # to spawn_end_fraction of the route; testing anywhere but spawn_margin_m at either end.
+    spawn_start_m: float = 0.5
+    spawn_end_fraction: float = 0.5
+    spawn_margin_m: float = 0.25
 
 
 @dataclass
@@ -69,7 +74,8 @@ class NetworkConfig:
 @dataclass
 class PPOConfig:
     iterations: int = 250
-    frames_per_iteration: int = 4096  # num_envs x max_steps
+    frames_per_iteration: int = 4096  # num_envs x rollout steps (128, one training episode)
+    num_envs: int = 32  # parallel environments while training (env.num_envs is for other uses)
     epochs: int = 60
     minibatch_size: int = 512
     lr: float = 2e-4
@@ -81,6 +87,7 @@ class PPOConfig:
     entropy_coef: float = 1e-4
     normalize_advantage: bool = False
     checkpoint_every: int = 5
+    stop_after: int = 0  # >0: stop (as if interrupted) once this many iterations are done
 
 
 @dataclass

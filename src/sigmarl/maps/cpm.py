@@ -15,7 +15,7 @@ import numpy as np
 
 from sigmarl.errors import MapError
 from sigmarl.maps.model import Lanelet, RoadMap
-from sigmarl.maps.routes import build_route, corridor_members
+from sigmarl.maps.routes import build_route, corridor_members, infer_adjacency
 
 # The seven loops the paper drives on the whole map (lanelet sequences).
 CPM_LOOPS: tuple[tuple[int, ...], ...] = (
@@ -129,6 +129,7 @@ def load_cpm(route_set: str = "loops", path: Path | None = None) -> RoadMap:
     """The whole CPM map with its loops ("loops") or the central intersection ("intersection")."""
     path = path or cpm_xml_path()
     lanelets, root = parse_commonroad(path)
+    infer_adjacency(lanelets)
     if route_set == "loops":
         routes = [build_route(f"loop{i + 1}", ids, lanelets, loop=True) for i, ids in enumerate(CPM_LOOPS)]
         name = "cpm"

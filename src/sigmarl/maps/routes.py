@@ -94,6 +94,32 @@ def corridor_members(lanelet: Lanelet, lanelets: dict[int, Lanelet]) -> tuple[in
     return left.id, right.id
 
 
+def infer_adjacency(lanelets: dict[int, Lanelet], tol: float = 1e-3) -> None:
+    """Add same-direction neighbours that a map file leaves implicit.
+
+    A lane that splits off another or merges into it (CPM: 22 beside 3, 23 beside
+    5) is often not marked adjacent. Two lanelets count as neighbours when they
+    lead to the same lanelets or come from the same ones, and one's right boundary
+    meets the other's left boundary at their start or end.
+    """
+    for a in lanelets.values():
+        if a.adj_right is not None:
+            continue
+        for b in lanelets.values():
+            if b.id == a.id or b.adj_left is not None:
+                continue
+            same_succ = a.successors and sorted(a.successors) == sorted(b.successors)
+            same_pred = a.predecessors and sorted(a.predecessors) == sorted(b.predecessors)
+            if not (same_succ or same_pred):
+                continue
+            touch = (np.linalg.norm(a.right[0] - b.left[0]) < tol
+                     or np.linalg.norm(a.right[-1] - b.left[-1]) < tol)
+            if touch:
+                a.adj_right, a.adj_right_same = b.id, True
+                b.adj_left, b.adj_left_same = a.id, True
+                break
+
+
 def corridor_groups(lanelets: dict[int, Lanelet]) -> list[list[int]]:
     """All same-direction lane groups with more than one lanelet, each listed left to right."""
     groups = []

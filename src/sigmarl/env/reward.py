@@ -1,0 +1,71 @@
+"""The per-agent reward (spec §4), term by term, batched over [E, A]."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+MAX_SPEED = 0.8
+DT = 0.05
+REF_WEIGHTS = (1.0 / 1.8, 0.6 / 1.8, 0.2 / 1.8)
+NEAR_BOUNDARY = 0.9 * (0.15 - 0.08) / 2  # 0.0315 m
+DEVIATION_SCALE = (0.15 - 0.08) / 2  # 0.035 m
+NEAR_AGENT = (0.12, 0.24)  # (l + w) / 2 and twice that
+STEER_FREE = math.radians(10)
+STEER_SCALE = math.radians(50)
+
+
+def decay(x: torch.Tensor, a: float, b: float) -> torch.Tensor:
+    """g(x; a, b): 1 at x <= a, 0 at x >= b, exponential in between."""
+    z = (x.clamp(a, b) - a) / (b - a)
+    return (torch.exp(-z) - math.exp(-1)) / (1 - math.exp(-1))
+
+
+@dataclass
+class RewardInputs:
+    pos: torch.Tensor  # [E, A, 2] after the step
+    prev_pos: torch.Tensor  # [E, A, 2] before the step
+    vel: torch.Tensor  # [E, A, 2] after the step
+    prev_ref_points: torch.Tensor  # [E, A, 3, 2] reference points observed before the step
+    d_boundary: torch.Tensor  # [E, A] smallest boundary distance (obs items 3.5/3.6, unscaled)
+    distances: torch.Tensor  # [E, A, A] center-to-center, diagonal ignored
+    d_center: torch.Tensor  # [E, A]
+    steering: torch.Tensor  # [E, A]
+    prev_steering: torch.Tensor  # [E, A]
+    agent_collision: torch.Tensor  # [E, A] bool
+    lane_collision: torch.Tensor  # [E, A] bool
+
+
+def reward_terms(x: RewardInputs) -> dict[str, torch.Tensor]:
+    """Each term of spec §4 as an [E, A] tensor (before the clamp)."""
+    w = x.pos.new_tensor(REF_WEIGHTS[: x.prev_ref_points.shape[-2]])
+    r = x.prev_ref_points - x.prev_pos.unsqueeze(-2)  # [E, A, P, 2]
+    step = (x.pos - x.prev_pos).unsqueeze(-2)
+    progress = 0.10 * ((step * r).sum(-1) * w).sum(-1) / (MAX_SPEED * DT)
+    v_bar = (x.vel.unsqueeze(-2) * r).sum(-1).mean(-1)
+    speed = 0.05 * v_bar / MAX_SPEED
+    speed = torch.where(v_bar <= 0, 2 * speed, speed)
+    moving = 0.05 * torch.sign(v_bar) * x.vel.norm(dim=-1) / MAX_SPEED
+    near_boundary = -0.20 * decay(x.d_boundary, 0.0, NEAR_BOUNDARY)
+    eye = torch.eye(x.distances.shape[-1], dtype=torch.bool, device=x.distances.device)
+    near = decay(x.distances, *NEAR_AGENT).masked_fill(eye, 0.0)
+    near_agents = -0.20 * near.sum(-1)
+    deviation = -0.02 * x.d_center / DEVIATION_SCALE
+    steer = -0.02 * ((x.steering - x.prev_steering).abs() - STEER_FREE).clamp(min=0) / STEER_SCALE
+    return {
+        "progress": progress,
+        "speed": speed,
+        "moving": moving,
+        "near_boundary": near_boundary,
+        "near_agents": near_agents,
+        "center_line_deviation": deviation,
+        "steering_change": steer,
+        "agent_collision": -x.agent_collision.to(x.pos.dtype),
+        "lane_collision": -x.lane_collision.to(x.pos.dtype),
+    }
+
+
+def total_reward(terms: dict[str, torch.Tensor]) -> torch.Tensor:
+    return torch.stack(list(terms.values())).sum(0).clamp(-1.0, 1.0)

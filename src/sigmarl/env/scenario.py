@@ -1,0 +1,327 @@
+"""The traffic scenario: a VMAS `BaseScenario` whose work is batched over envs and agents.
+
+VMAS asks a scenario for each agent's action, observation, reward and info one
+agent at a time. Here those calls only read or write slices of [E, A] tensors:
+the step is computed once for all agents in `post_step`, and resets requested
+per environment are collected and carried out as one batch when the next
+observation is read. Vehicles are not integrated by VMAS' physics; the
+kinematic single-track model runs on our own state tensors.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from vmas.simulator.core import Agent, Box, World
+from vmas.simulator.scenario import BaseScenario
+
+from sigmarl.env.dynamics import bicycle_step
+from sigmarl.env.geometry import (
+    pairwise_rect_overlap,
+    point_polyline_distance,
+    polyline_rect_overlap,
+    rect_corners,
+)
+from sigmarl.env.observation import ObsFlags, ObsInputs, build_observation
+from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
+from sigmarl.env.route_bank import RouteBank
+from sigmarl.env.spawn import sample_spawns, spawn_index_range
+from sigmarl.maps.model import RoadMap
+
+LENGTH, WIDTH = 0.16, 0.08
+MAX_SPEED = 0.8
+MAX_STEER = math.radians(35)
+DT = 0.05
+# Window sizes (in resampled points) for local searches around an agent's progress index.
+CENTER_WINDOW = (-3, 8)  # an agent moves at most 0.04 m (half a point) per step
+BOUNDARY_WINDOW = (-6, 7)  # dense boundary points (0.02 m) around the nearest one
+LOOKAHEAD_POINTS = 5  # 1 behind .. 3 ahead of the closest corridor point
+
+
+class TrafficScenario(BaseScenario):
+    """Connected automated vehicles following routes on a road map (spec §2-§6)."""
+
+    def make_world(self, batch_dim: int, device: torch.device, **kwargs) -> World:
+        road_map: RoadMap = kwargs["road_map"]
+        self.flags: ObsFlags = kwargs.get("flags", ObsFlags())
+        self.n_agents = int(kwargs.get("n_agents", 4))
+        self.train = kwargs.get("mode", "train") == "train"
+        self.noise = float(kwargs.get("noise", 0.02))
+        self.n_ref = self.flags.n_ref_points
+        self.ref_stride = int(kwargs.get("ref_point_stride", 2))
+        self.bank = RouteBank(road_map, device)
+        self.spawn_lo, self.spawn_hi = spawn_index_range(
+            self.bank,
+            train=self.train,
+            start_m=float(kwargs.get("spawn_start_m", 0.5)),
+            end_fraction=float(kwargs.get("spawn_end_fraction", 0.5)),
+            margin_m=float(kwargs.get("spawn_margin_m", 0.25)),
+        )
+        self.rng = torch.Generator(device=device)
+        self.rng.manual_seed(int(kwargs.get("seed", 0)))
+
+        world = World(batch_dim, device, dt=DT, substeps=1, drag=0.0)
+        for i in range(self.n_agents):
+            world.add_agent(
+                Agent(
+                    name=f"agent_{i}",
+                    shape=Box(length=LENGTH, width=WIDTH),
+                    collide=False,
+                    movable=False,  # our own dynamics move the vehicles
+                    rotatable=False,
+                    u_range=[MAX_SPEED, MAX_STEER],
+                    render_action=False,
+                )
+            )
+        self._agent_index = {a.name: i for i, a in enumerate(world.agents)}
+        self._alloc(batch_dim, device)
+        return world
+
+    # ---- state -------------------------------------------------------------------------
+    def _alloc(self, n_env: int, device) -> None:
+        z = lambda *s: torch.zeros(n_env, self.n_agents, *s, device=device)  # noqa: E731
+        self.pos, self.vel, self.heading, self.speed = z(2), z(2), z(), z()
+        self.steering, self.prev_steering = z(), z()
+        self.action = z(2)
+        self.route = torch.zeros(n_env, self.n_agents, dtype=torch.long, device=device)
+        self.index = torch.zeros_like(self.route)
+        self.agent_collision = torch.zeros(n_env, self.n_agents, dtype=torch.bool, device=device)
+        self.lane_collision = torch.zeros_like(self.agent_collision)
+        self.respawned = torch.zeros_like(self.agent_collision)
+        self.terminated = torch.zeros(n_env, dtype=torch.bool, device=device)
+        self.rew = z()
+        self.terms: dict[str, torch.Tensor] = {}
+        self.obs: torch.Tensor | None = None
+        self.pending_reset = torch.ones(n_env, dtype=torch.bool, device=device)
+
+    def reset_world_at(self, env_index: int | None = None) -> None:
+        # Only mark: the reset itself runs batched when the observation is next read.
+        if env_index is None:
+            self.pending_reset[:] = True
+        else:
+            self.pending_reset[env_index] = True
+        self.obs = None
+
+    def _flush_resets(self) -> None:
+        envs = self.pending_reset
+        if not envs.any():
+            return
+        place = envs.unsqueeze(-1).expand(-1, self.n_agents)
+        self._respawn(place, all_agents=True)
+        zero = torch.zeros((), device=self.pos.device)
+        for t in (self.steering, self.prev_steering):
+            t[envs] = zero
+        for t in (self.agent_collision, self.lane_collision, self.respawned):
+            t[envs] = False
+        self.rew[envs] = 0.0
+        self.terminated[envs] = False
+        self.pending_reset[:] = False
+
+    def _respawn(self, place: torch.Tensor, all_agents: bool = False) -> None:
+        """New route, position, heading and speed for the agents where `place` is True."""
+        # Agents being replaced do not block the sampler: park them far away.
+        pos = torch.where(place.unsqueeze(-1), torch.full_like(self.pos, 1e6), self.pos)
+        route, idx = sample_spawns(self.bank, pos, place, self.spawn_lo, self.spawn_hi, self.rng)
+        speed = torch.rand(place.shape, generator=self.rng, device=self.pos.device) * MAX_SPEED
+        heading = self.bank.heading[route, idx]
+        self.route = torch.where(place, route, self.route)
+        self.index = torch.where(place, idx, self.index)
+        self.pos = torch.where(place.unsqueeze(-1), self.bank.center[route, idx], self.pos)
+        self.heading = torch.where(place, heading, self.heading)
+        self.speed = torch.where(place, speed, self.speed)
+        vel = speed.unsqueeze(-1) * torch.stack([heading.cos(), heading.sin()], -1)
+        self.vel = torch.where(place.unsqueeze(-1), vel, self.vel)
+        self.steering = torch.where(place, torch.zeros_like(self.steering), self.steering)
+        self.prev_steering = torch.where(place, torch.zeros_like(self.steering), self.prev_steering)
+
+    # ---- per-step geometry ---------------------------------------------------------------
+    def _progress_index(self) -> None:
+        """Closest center-line point, searched in a window ahead/behind the last one."""
+        b = self.bank
+        offs = torch.arange(*CENTER_WINDOW, device=self.pos.device)
+        idx = b.index(self.route, self.index.unsqueeze(-1) + offs)
+        pts = b.gather(b.center, self.route, idx)
+        d = (pts - self.pos.unsqueeze(-2)).norm(dim=-1)
+        self.index = idx.gather(-1, d.argmin(-1, keepdim=True)).squeeze(-1)
+
+    def _geometry(self) -> None:
+        """Everything observation, reward and info read, for all agents at once."""
+        b = self.bank
+        dev = self.pos.device
+        self.corners = rect_corners(self.pos, self.heading, LENGTH, WIDTH)  # [E, A, 4, 2]
+        # Distance to the own center line: the segments around the progress index.
+        offs = torch.arange(-2, 3, device=dev)
+        cidx = b.index(self.route, self.index.unsqueeze(-1) + offs)
+        cline = b.gather(b.center, self.route, cidx)
+        self.d_center = point_polyline_distance(self.pos.unsqueeze(-2), cline)[0].squeeze(-1)
+        # Reference points ahead on the own route.
+        ahead = torch.arange(1, self.n_ref + 1, device=dev) * self.ref_stride
+        ridx = b.index(self.route, self.index.unsqueeze(-1) + ahead)
+        self.ref_points = b.gather(b.center, self.route, ridx)
+        # Corridor boundaries: distances, collisions and the observed points.
+        probe = torch.cat([self.pos.unsqueeze(-2), self.corners], dim=-2)  # [E, A, 5, 2]
+        self.d_side, self.side_points, self.side_hit = [], [], []
+        for dense, n_dense, to_dense, res, n_res, to_res, sign in (
+            (b.left_dense, b.n_left_dense, b.center_to_left, b.left_res, b.n_left_res, b.center_to_left_res, 1.0),
+            (b.right_dense, b.n_right_dense, b.center_to_right, b.right_res, b.n_right_res, b.center_to_right_res, -1.0),
+        ):
+            near = b.gather(to_dense, self.route, self.index.unsqueeze(-1)).squeeze(-1)
+            widx = b.index(self.route, near.unsqueeze(-1) + torch.arange(*BOUNDARY_WINDOW, device=dev), n_dense - b.is_loop.long())
+            line = b.gather(dense, self.route, widx)  # [E, A, W, 2]
+            dist, seg, _, _ = point_polyline_distance(probe, line)
+            d_db = torch.minimum(dist[..., 0] - WIDTH / 2, dist[..., 1:].min(-1).values)
+            # Outside the corridor without touching it (a big jump) also counts as a crossing.
+            s = seg[..., 0]
+            a = line.gather(-2, s[..., None, None].expand(*s.shape, 1, 2)).squeeze(-2)
+            c = line.gather(-2, (s + 1)[..., None, None].expand(*s.shape, 1, 2)).squeeze(-2)
+            cross = (c - a)[..., 0] * (self.pos - a)[..., 1] - (c - a)[..., 1] * (self.pos - a)[..., 0]
+            outside = sign * cross > 0
+            self.side_hit.append(polyline_rect_overlap(self.corners, line) | outside)
+            self.d_side.append(d_db)
+            near_res = b.gather(to_res, self.route, self.index.unsqueeze(-1)).squeeze(-1)
+            pidx = b.index(self.route, near_res.unsqueeze(-1) + torch.arange(-1, LOOKAHEAD_POINTS - 1, device=dev), n_res)
+            self.side_points.append(b.gather(res, self.route, pidx))
+        # Other agents.
+        self.distances = torch.cdist(self.pos, self.pos)
+        k = min(self.flags.n_nearest, self.n_agents - 1)
+        masked = self.distances + torch.eye(self.n_agents, device=dev) * 1e9
+        self.neighbours = masked.topk(k, dim=-1, largest=False, sorted=True).indices
+
+    def _collisions(self) -> None:
+        self.agent_collision = pairwise_rect_overlap(self.corners).any(-1)
+        self.lane_collision = self.side_hit[0] | self.side_hit[1]
+
+    def _past_exit(self) -> torch.Tensor:
+        """Non-loop agents whose center has passed the route's last real point."""
+        b = self.bank
+        last = b.n_points[self.route] - 1
+        end = b.center[self.route, last]
+        direction = torch.stack([b.heading[self.route, last].cos(), b.heading[self.route, last].sin()], -1)
+        beyond = ((self.pos - end) * direction).sum(-1) > 0
+        return ~b.is_loop[self.route] & (self.index >= last) & beyond
+
+    def _observe(self) -> None:
+        x = ObsInputs(
+            pos=self.pos, heading=self.heading, speed=self.speed, vel=self.vel,
+            ref_points=self.ref_points, d_center=self.d_center,
+            d_left=self.d_side[0], d_right=self.d_side[1],
+            left_points=self.side_points[0], right_points=self.side_points[1],
+            corners=self.corners, neighbours=self.neighbours, distances=self.distances,
+            length=LENGTH, width=WIDTH,
+        )
+        obs = build_observation(x, self.flags)
+        if self.noise > 0:
+            u = torch.rand(obs.shape, generator=self.rng, device=obs.device)
+            obs = obs + (u - 0.5) * self.noise
+        self.obs = obs
+        self.obs_ref_points = self.ref_points  # what the next reward measures progress against
+
+    def _refresh(self) -> None:
+        """Observation of the current state (after resets)."""
+        self._flush_resets()
+        self._geometry()
+        self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
+        self._observe()
+
+    def set_state(
+        self,
+        route: torch.Tensor,
+        pos: torch.Tensor,
+        heading: torch.Tensor,
+        speed: torch.Tensor | None = None,
+        steering: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        """Place every agent by hand ([E, A] route ids, [E, A, 2] positions, ...) and return
+        the observation of that state. For tests, demos and scripted scenes."""
+        self.pending_reset[:] = False
+        dev = self.pos.device
+        self.route = route.to(dev).long().expand_as(self.route).clone()
+        self.pos = pos.to(self.pos).expand_as(self.pos).clone()
+        self.heading = heading.to(self.pos).expand_as(self.heading).clone()
+        self.speed = (speed.to(self.pos) if speed is not None else torch.zeros_like(self.speed)).expand_as(self.speed).clone()
+        self.vel = self.speed.unsqueeze(-1) * torch.stack([self.heading.cos(), self.heading.sin()], -1)
+        self.steering = (steering.to(self.pos) if steering is not None else torch.zeros_like(self.steering)).expand_as(self.steering).clone()
+        self.prev_steering = self.steering.clone()
+        # Closest center-line point over the whole route (no previous index to search around).
+        b = self.bank
+        d = (b.center[self.route] - self.pos.unsqueeze(-2)).norm(dim=-1)
+        invalid = torch.arange(b.center.shape[1], device=dev) >= b.n_center[self.route].unsqueeze(-1)
+        self.index = d.masked_fill(invalid, float("inf")).argmin(-1)
+        self._geometry()
+        self._collisions()
+        self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
+        self._observe()
+        return self.obs
+
+    # ---- VMAS hooks ------------------------------------------------------------------------
+    def process_action(self, agent: Agent) -> None:
+        self.action[:, self._agent_index[agent.name]] = agent.action.u
+
+    def post_step(self) -> None:
+        if self.obs is None:
+            self._refresh()
+        prev_pos, prev_ref = self.pos, self.obs_ref_points
+        speed = self.action[..., 0].clamp(-MAX_SPEED, MAX_SPEED)
+        steer = self.action[..., 1].clamp(-MAX_STEER, MAX_STEER)
+        self.prev_steering = self.steering
+        self.steering = steer
+        self.speed = speed
+        self.pos, self.heading, self.vel = bicycle_step(self.pos, self.heading, speed, steer, DT)
+        self._progress_index()
+        self._geometry()
+        self._collisions()
+        self.terms = reward_terms(
+            RewardInputs(
+                pos=self.pos, prev_pos=prev_pos, vel=self.vel, prev_ref_points=prev_ref,
+                d_boundary=torch.minimum(self.d_side[0], self.d_side[1]),
+                distances=self.distances, d_center=self.d_center,
+                steering=self.steering, prev_steering=self.prev_steering,
+                agent_collision=self.agent_collision, lane_collision=self.lane_collision,
+            )
+        )
+        self.rew = total_reward(self.terms)
+        # Metrics of this step, before anyone respawns.
+        self.step_d_center = self.d_center
+        self.step_speed = self.speed.abs()
+        exited = self._past_exit()
+        collided = self.agent_collision | self.lane_collision
+        if self.train:
+            self.terminated = collided.any(-1)
+            self.respawned = exited & ~self.terminated.unsqueeze(-1)
+        else:
+            self.terminated = torch.zeros_like(self.terminated)
+            self.respawned = exited | collided
+        if self.respawned.any():
+            self._respawn(self.respawned)
+            self._geometry()
+        self._observe()
+
+    def observation(self, agent: Agent) -> torch.Tensor:
+        if self.obs is None:
+            self._refresh()
+        return self.obs[:, self._agent_index[agent.name]]
+
+    def reward(self, agent: Agent) -> torch.Tensor:
+        return self.rew[:, self._agent_index[agent.name]]
+
+    def done(self) -> torch.Tensor:
+        if self.obs is None:
+            self._refresh()
+        return self.terminated
+
+    def info(self, agent: Agent) -> dict[str, torch.Tensor]:
+        i = self._agent_index[agent.name]
+        return {
+            "agent_collision": self.agent_collision[:, i].float(),
+            "lane_collision": self.lane_collision[:, i].float(),
+            "distance_to_center_line": self.step_d_center[:, i],
+            "speed": self.step_speed[:, i],
+            "respawned": self.respawned[:, i].float(),
+        }
+
+    def sync_render_state(self) -> None:
+        """Copy our state into VMAS' agent states (only needed for VMAS' own renderer)."""
+        for i, agent in enumerate(self.world.agents):
+            agent.state.pos = self.pos[:, i].clone()
+            agent.state.rot = self.heading[:, i : i + 1].clone()

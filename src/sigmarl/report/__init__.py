@@ -1,0 +1,38 @@
+"""The study's report: aggregation, composite score, Table I, figures."""
+
+from sigmarl.report.aggregate import aggregate, trim_collisions
+from sigmarl.report.build import Report, build_report
+from sigmarl.report.composite import CompositeScore, composite_score, composite_scores
+from sigmarl.report.figures import plot_distributions, plot_training_curves
+from sigmarl.report.paper import paper_table, paper_values
+from sigmarl.report.stats import mean_ci, t_critical
+from sigmarl.report.tables import (
+    ResultTable,
+    best_mask,
+    build_table,
+    to_csv_frame,
+    to_latex,
+    to_markdown,
+)
+
+__all__ = [
+    "CompositeScore",
+    "Report",
+    "ResultTable",
+    "aggregate",
+    "best_mask",
+    "build_report",
+    "build_table",
+    "composite_score",
+    "composite_scores",
+    "mean_ci",
+    "paper_table",
+    "paper_values",
+    "plot_distributions",
+    "plot_training_curves",
+    "t_critical",
+    "to_csv_frame",
+    "to_latex",
+    "to_markdown",
+    "trim_collisions",
+]

@@ -1,0 +1,126 @@
+"""`build_report`: evaluation rows in, table files, composite scores and figures out."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from sigmarl.report.aggregate import aggregate, model_order, scenario_order, validate_rows
+from sigmarl.report.composite import composite_scores
+from sigmarl.report.figures import plot_distributions, plot_training_curves
+from sigmarl.report.paper import paper_values
+from sigmarl.report.tables import ResultTable, build_table, to_csv_frame, to_latex, to_markdown
+from sigmarl.study import MODELS
+
+
+@dataclass
+class Report:
+    """What `build_report` made: the Markdown to print, the frames behind it, the files."""
+
+    markdown: str
+    table: ResultTable
+    summary: pd.DataFrame  # one row per (scenario, model, metric), see `aggregate`
+    composite: pd.DataFrame  # scenario, model, CS, note
+    paths: dict[str, Path] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def _notes(
+    summary: pd.DataFrame,
+    composite: pd.DataFrame,
+    models: list[str],
+    *,
+    trim: bool,
+    compare_paper: bool,
+    ci: bool,
+) -> list[str]:
+    """The lines under the table that say what the numbers are."""
+    n = summary["n"][summary["metric"] == "AS"]
+    seeds = summary["n_seeds"].max()
+    sims = f"{n.min()}" if n.min() == n.max() else f"{n.min()}–{n.max()}"
+    notes = [
+        f"Mean over {sims} simulations per cell"
+        + (f" ({seeds} seeds pooled)" if seeds > 1 else "")
+        + (" ± 95% CI half-width" if ci else "")
+        + "; collision rates in % of steps, CD in cm, AS in m/s; best per row in bold."
+    ]
+    if trim:
+        notes.append("Collision rates without each evaluation's best and worst simulation.")
+    for scenario, g in composite.groupby("scenario", sort=False):
+        for note in dict.fromkeys(g["note"]):
+            if note:
+                notes.append(f"{scenario}: {note}.")
+    if compare_paper:
+        notes.append("In parentheses: the paper's Table I (CD converted to real cm).")
+        if not trim:
+            notes.append(
+                "The paper dropped the best and worst simulation from its collision rates; "
+                "ours are not trimmed (use trim for a like-for-like comparison)."
+            )
+        if models != list(MODELS):
+            notes.append(
+                "The paper's composite scores compare M0..M5; ours compare "
+                f"{', '.join(models)}, so the two CS rows are not comparable."
+            )
+    return notes
+
+
+def build_report(
+    rows: pd.DataFrame,
+    models: list[str] | None = None,
+    *,
+    out_dir: Path,
+    trim: bool = False,
+    compare_paper: bool = False,
+    latex: bool = False,
+    curves: pd.DataFrame | None = None,
+    ci: bool = False,
+    figures: bool = True,
+) -> Report:
+    """Aggregate evaluation rows into the paper's Table I and write it to `out_dir`.
+
+    rows: one per (model, obs, seed, scenario, simulation) with CR_AA, CR_AL, CR_total
+    (fractions of steps), CD (cm) and AS (m/s); models: the columns, in order (default:
+    every model in the rows); trim: drop each evaluation's best and worst simulation from
+    the collision rates; compare_paper: show the paper's numbers in parentheses; ci: show
+    95% CI half-widths; curves: (model, iteration, reward[, seed]) for the training plot.
+
+    Writes table.md, table.csv, summary.csv, composite_scores.csv, table.tex (latex),
+    distributions.png and training_curves.png (figures; curves given).
+    """
+    rows = validate_rows(rows)
+    models = model_order(rows, models)
+    summary = aggregate(rows, models, trim=trim)
+    composite = composite_scores(summary)
+    notes = _notes(summary, composite, models, trim=trim, compare_paper=compare_paper, ci=ci)
+    paper = paper_values(models) if compare_paper else None
+    table = build_table(summary, composite, models, paper, notes)
+    markdown = to_markdown(table, ci=ci)
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = {
+        "markdown": out_dir / "table.md",
+        "csv": out_dir / "table.csv",
+        "summary": out_dir / "summary.csv",
+        "composite": out_dir / "composite_scores.csv",
+    }
+    paths["markdown"].write_text(markdown, encoding="utf-8")
+    to_csv_frame(table).to_csv(paths["csv"], index=False)
+    summary.to_csv(paths["summary"], index=False)
+    composite.to_csv(paths["composite"], index=False)
+    if latex:
+        paths["latex"] = out_dir / "table.tex"
+        paths["latex"].write_text(to_latex(table, ci=ci), encoding="utf-8")
+    if figures:
+        scenarios = scenario_order(rows)
+        paths["distributions"] = plot_distributions(
+            rows[rows["model"].isin(models)], models, scenarios, out_dir / "distributions.png"
+        )
+        if curves is not None and len(curves):
+            paths["training_curves"] = plot_training_curves(
+                curves, out_dir / "training_curves.png", models
+            )
+    return Report(markdown, table, summary, composite, paths, notes)

@@ -1,0 +1,95 @@
+"""Report figures, drawn with matplotlib's object API on the Agg canvas (no pyplot state)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+DISTRIBUTION_METRICS = {
+    "CR_total": ("CR_total (%)", 100.0),
+    "CD": ("CD (cm)", 1.0),
+    "AS": ("AS (m/s)", 1.0),
+}
+
+
+def plot_distributions(
+    rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path
+) -> Path:
+    """Box plots of CR_total, CD and AS over the simulations: a row of panels per scenario.
+
+    Every simulation is also drawn as a dot, since with 32 simulations and mostly zero
+    collisions a box alone hides how many simulations had any.
+    """
+    fig = Figure(
+        figsize=(3.6 * len(DISTRIBUTION_METRICS), 2.6 * len(scenarios)), layout="constrained"
+    )
+    axes = np.atleast_2d(fig.subplots(len(scenarios), len(DISTRIBUTION_METRICS), squeeze=False))
+    rng = np.random.default_rng(0)  # fixed jitter: the same rows give the same picture
+    positions = np.arange(1, len(models) + 1)
+    for i, scenario in enumerate(scenarios):
+        sc = rows[rows["scenario"] == scenario]
+        for j, (metric, (label, scale)) in enumerate(DISTRIBUTION_METRICS.items()):
+            ax = axes[i, j]
+            data = [(sc.loc[sc["model"] == m, metric].dropna() * scale).to_numpy() for m in models]
+            filled = [k for k, d in enumerate(data) if len(d)]
+            if filled:
+                ax.boxplot(
+                    [data[k] for k in filled],
+                    positions=positions[filled],
+                    widths=0.6,
+                    showfliers=False,
+                )
+            for k in filled:
+                jitter = rng.uniform(-0.15, 0.15, len(data[k]))
+                ax.plot(positions[k] + jitter, data[k], ".", ms=2, alpha=0.5, color="tab:blue")
+            ax.set_xticks(positions, models)
+            ax.set_xlim(0.4, len(models) + 0.6)
+            ax.set_title(f"{scenario}: {label}", fontsize=9)
+            ax.grid(axis="y", alpha=0.3)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | None = None) -> Path:
+    """Mean episode reward per training iteration, one line per model (paper Fig. 5).
+
+    `curves` has columns model, iteration, reward and optionally seed; with several seeds
+    the line is their mean and the band their range.
+    """
+    missing = {"model", "iteration", "reward"} - set(curves.columns)
+    if missing:
+        raise ValueError(f"training curves lack the column(s) {', '.join(sorted(missing))}")
+    curves = curves.assign(model=curves["model"].astype(str))
+    if models is None:
+        models = list(dict.fromkeys(curves["model"]))
+    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
+    ax = fig.subplots()
+    for model in models:
+        c = curves[curves["model"] == model]
+        if c.empty:
+            continue
+        if "seed" in c.columns:  # average the seeds' rewards per iteration first
+            per_seed = c.groupby(["iteration", "seed"])["reward"].mean().unstack("seed")
+        else:
+            per_seed = c.groupby("iteration")["reward"].mean().to_frame()
+        line = ax.plot(per_seed.index, per_seed.mean(axis=1), label=model, lw=1.2)[0]
+        if per_seed.shape[1] > 1:
+            ax.fill_between(
+                per_seed.index,
+                per_seed.min(axis=1),
+                per_seed.max(axis=1),
+                color=line.get_color(),
+                alpha=0.2,
+                lw=0,
+            )
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("mean episode reward")
+    ax.grid(alpha=0.3)
+    ax.legend(ncols=2, fontsize=8)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    return path

@@ -1,0 +1,202 @@
+"""The paper's Table I layout: row groups per scenario, one column per model.
+
+A `ResultTable` holds the numbers; `to_markdown`, `to_latex` and `to_csv_frame` render
+it. The best value per row is bold: lowest for collision rates and CD, highest for AS
+and the composite score. Values are compared as printed, so models that tie on screen
+are all bold, and a row where every model ties has no best.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import pandas as pd
+
+from sigmarl.report.aggregate import UNITS
+from sigmarl.study import METRIC_COLUMNS
+
+ROW_METRICS = [*METRIC_COLUMNS, "CS"]
+LOWER_IS_BETTER = frozenset({"CR_AA", "CR_AL", "CR_total", "CD"})
+DIGITS = 2
+MISSING = "–"
+
+
+@dataclass
+class ResultTable:
+    """Means (and CI half-widths, optional paper numbers) indexed by (scenario, metric)."""
+
+    values: pd.DataFrame
+    ci: pd.DataFrame
+    paper: pd.DataFrame | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def models(self) -> list[str]:
+        return list(self.values.columns)
+
+    @property
+    def scenarios(self) -> list[str]:
+        return list(dict.fromkeys(self.values.index.get_level_values("scenario")))
+
+
+def build_table(
+    summary: pd.DataFrame,
+    composite: pd.DataFrame,
+    models: list[str],
+    paper: pd.DataFrame | None = None,
+    notes: list[str] | None = None,
+) -> ResultTable:
+    """Arrange an `aggregate` summary and `composite_scores` into the paper's layout."""
+    scenarios = list(dict.fromkeys(summary["scenario"]))
+    index = pd.MultiIndex.from_product([scenarios, ROW_METRICS], names=["scenario", "metric"])
+    cs = composite.assign(metric="CS", mean=composite["CS"], ci=math.nan)
+    long = pd.concat([summary, cs], ignore_index=True)
+
+    def wide(column: str) -> pd.DataFrame:
+        w = long.pivot_table(
+            index=["scenario", "metric"], columns="model", values=column, dropna=False
+        )
+        w = w.reindex(index=index, columns=models).astype(float)
+        w.columns.name = None
+        return w
+
+    if paper is not None:
+        paper = paper.reindex(index=index, columns=models).astype(float)
+    return ResultTable(wide("mean"), wide("ci"), paper, list(notes or []))
+
+
+def best_mask(values: pd.DataFrame, digits: int = DIGITS) -> pd.DataFrame:
+    """True where a cell holds its row's best value as printed with `digits` decimals."""
+    shown = values.round(digits)
+    mask = pd.DataFrame(False, index=values.index, columns=values.columns)
+    for key, row in shown.iterrows():
+        finite = row.dropna()
+        if finite.empty or finite.nunique() == 1 and len(finite) == len(row):
+            continue  # nothing to compare, or every model ties
+        best = finite.min() if key[-1] in LOWER_IS_BETTER else finite.max()
+        mask.loc[key] = row == best
+    return mask
+
+
+def _number(x: float, digits: int) -> str:
+    if x is None or not math.isfinite(x):
+        return MISSING
+    s = f"{x:.{digits}f}"
+    return "0." + "0" * digits if s == "-0." + "0" * digits else s  # no "-0.00"
+
+
+def _cells(
+    table: ResultTable, *, ci: bool, digits: int, bold: tuple[str, str], pm: str
+) -> pd.DataFrame:
+    """Cell strings: value, optional ± half-width, bold when best, optional (paper)."""
+    mask = best_mask(table.values, digits)
+    cells = pd.DataFrame("", index=table.values.index, columns=table.values.columns)
+    for key in table.values.index:
+        for model in table.models:
+            v = table.values.at[key, model]
+            text = _number(v, digits)
+            half = table.ci.at[key, model]
+            if ci and math.isfinite(half):
+                text += f"{pm}{_number(half, digits)}"
+            if mask.at[key, model]:
+                text = f"{bold[0]}{text}{bold[1]}"
+            if table.paper is not None:
+                text += f" ({_number(table.paper.at[key, model], digits)})"
+            cells.at[key, model] = text
+    return cells
+
+
+def row_label(metric: str) -> str:
+    """Row name with its unit as printed: "CR_AA (%)", "CD (cm)", "CS"."""
+    unit = {"percent": "%", "1": ""}.get(UNITS.get(metric, ""), UNITS.get(metric, ""))
+    return f"{metric} ({unit})" if unit else metric
+
+
+def to_markdown(table: ResultTable, *, ci: bool = False, digits: int = DIGITS) -> str:
+    """A GitHub-flavoured Markdown table, scenario named on its group's first row."""
+    cells = _cells(table, ci=ci, digits=digits, bold=("**", "**"), pm=" ± ")
+    lines = [
+        "| Scenario | Metric | " + " | ".join(table.models) + " |",
+        "|---|---|" + "---:|" * len(table.models),
+    ]
+    for scenario, metric in cells.index:
+        first = metric == ROW_METRICS[0]
+        row = [scenario if first else "", row_label(metric), *cells.loc[(scenario, metric)]]
+        lines.append("| " + " | ".join(row) + " |")
+    if table.notes:
+        lines += ["", *table.notes]
+    return "\n".join(lines) + "\n"
+
+
+_LATEX_SPECIAL = {
+    "\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
+    "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+}  # fmt: skip
+
+
+def latex_escape(text: str) -> str:
+    return "".join(_LATEX_SPECIAL.get(ch, ch) for ch in str(text))
+
+
+def to_latex(
+    table: ResultTable,
+    *,
+    ci: bool = False,
+    digits: int = DIGITS,
+    caption: str = "Evaluation of the models in the test scenarios (best per row in bold).",
+    label: str = "tab:sigmarl-results",
+) -> str:
+    """A booktabs `table` float: one header line per scenario, `\\midrule` between groups.
+
+    Needs only `\\usepackage{booktabs}`; numbers use a real minus sign.
+    """
+    cells = _cells(table, ci=ci, digits=digits, bold=(r"\textbf{", "}"), pm=r" $\pm$ ")
+    cells = cells.map(lambda s: s.replace("-", "$-$").replace(MISSING, "--"))
+    n = len(table.models)
+    out = [
+        "% requires \\usepackage{booktabs}",
+        "\\begin{table}[t]",
+        "\\centering",
+        f"\\caption{{{latex_escape(caption)}}}",
+        f"\\label{{{label}}}",
+        "\\begin{tabular}{l" + "r" * n + "}",
+        "\\toprule",
+        "Metric & " + " & ".join(latex_escape(m) for m in table.models) + " \\\\",
+    ]
+    for scenario in table.scenarios:
+        out += [
+            "\\midrule",
+            f"\\multicolumn{{{n + 1}}}{{l}}{{\\textit{{{latex_escape(scenario)}}}}} \\\\",
+        ]
+        for metric in ROW_METRICS:
+            row = [latex_escape(row_label(metric)), *cells.loc[(scenario, metric)]]
+            out.append(" & ".join(row) + " \\\\")
+    out += ["\\bottomrule", "\\end{tabular}"]
+    out += [f"\\par\\smallskip\\footnotesize {latex_escape(note)}" for note in table.notes]
+    out.append("\\end{table}")
+    return "\n".join(out) + "\n"
+
+
+def to_csv_frame(table: ResultTable) -> pd.DataFrame:
+    """Plain numbers in the layout of the paper's reference CSV, plus a `source` column.
+
+    Columns: scenario, metric, unit, source ("ours", or "paper" when compared), models.
+    """
+    parts = []
+    sources = [("ours", table.values)] + (
+        [("paper", table.paper)] if table.paper is not None else []
+    )
+    for source, values in sources:
+        part = values.reset_index()
+        part.insert(2, "unit", part["metric"].map(UNITS))
+        part.insert(3, "source", source)
+        parts.append(part)
+    frame = pd.concat(parts, ignore_index=True)
+    order = {key: i for i, key in enumerate(table.values.index)}
+    frame["_row"] = [order[(s, m)] for s, m in zip(frame["scenario"], frame["metric"], strict=True)]
+    return (
+        frame.sort_values(["_row", "source"], kind="stable")
+        .drop(columns="_row")
+        .reset_index(drop=True)
+    )

@@ -1,0 +1,139 @@
+"""Table I layout, bold best values, Markdown, LaTeX and CSV renderings on hand-made data."""
+
+from __future__ import annotations
+
+import re
+
+import pandas as pd
+import pytest
+
+from sigmarl.report.aggregate import aggregate
+from sigmarl.report.composite import composite_scores
+from sigmarl.report.paper import paper_values
+from sigmarl.report.tables import build_table, to_csv_frame, to_latex, to_markdown
+
+MODELS = ["M0", "M1", "M2", "M3", "M4", "M5"]
+SCENARIOS = ["CPM", "Intersection", "On-Ramp", "Roundabout"]
+# Per model, designed so that each row has one known best (percent for CR):
+CR_AA = [0.5, 0.2, 0.3, 0.4, 0.6, 0.7]  # best M1
+CR_AL = [0.3, 0.4, 0.1, 0.5, 0.6, 0.7]  # best M2; CR_total 0.8 0.6 0.4 0.9 1.2 1.4 -> M2
+CD = [2.0, 3.0, 2.5, 1.5, 2.2, 2.8]  # best M3
+AS = [0.60, 0.50, 0.55, 0.58, 0.70, 0.65]  # best M4
+# CS by hand (means CR 5.3/6, CD 14/6, AS 3.58/6):
+# -0.7572 -1.1270 -0.6025 -0.6897 -1.1282 -1.6955 -> best M2.
+CS = [-0.7572, -1.1270, -0.6025, -0.6897, -1.1282, -1.6955]
+BEST = {"CR_AA": "M1", "CR_AL": "M2", "CR_total": "M2", "CD": "M3", "AS": "M4", "CS": "M2"}
+
+
+def hand_rows(models=MODELS, collide_in_roundabout=True) -> pd.DataFrame:
+    """Three simulations per cell at value - d, value, value + d: means are the values."""
+    recs = []
+    for scenario in SCENARIOS:
+        for i, model in enumerate(models):
+            for sim, d in enumerate([-0.01, 0.0, 0.01]):
+                aa, al = CR_AA[i] / 100, CR_AL[i] / 100
+                if scenario == "Roundabout" and not collide_in_roundabout:
+                    aa = al = 0.0
+                recs.append(
+                    {"model": model, "obs": "x", "seed": 0, "scenario": scenario, "simulation": sim,
+                     "CR_AA": aa, "CR_AL": al, "CR_total": aa + al, "CD": CD[i] + d, "AS": AS[i] + d}
+                )  # fmt: skip
+    return pd.DataFrame(recs)
+
+
+def make_table(rows, models=MODELS, paper=None):
+    summary = aggregate(rows, models)
+    return build_table(summary, composite_scores(summary), models, paper)
+
+
+def body(markdown: str) -> list[list[str]]:
+    lines = [ln for ln in markdown.splitlines() if ln.startswith("|")][2:]
+    return [[c.strip() for c in ln.strip("|").split("|")] for ln in lines]
+
+
+def test_shape_and_values():
+    table = make_table(hand_rows())
+    assert table.values.shape == (24, 6) and table.models == MODELS
+    assert table.scenarios == SCENARIOS
+    metrics = list(table.values.loc["CPM"].index)
+    assert metrics == ["CR_AA", "CR_AL", "CR_total", "CD", "AS", "CS"]
+    assert table.values.loc[("CPM", "CR_total")].tolist() == pytest.approx(
+        [0.8, 0.6, 0.4, 0.9, 1.2, 1.4]
+    )
+    assert table.values.loc[("CPM", "CS")].tolist() == pytest.approx(CS, abs=1e-4)
+
+
+def test_markdown_bolds_the_best_cell_of_each_row():
+    rows = body(to_markdown(make_table(hand_rows(collide_in_roundabout=False))))
+    assert len(rows) == 24 and all(len(r) == 8 for r in rows)
+    assert [r[0] for r in rows if r[0]] == SCENARIOS  # scenario named once per group
+    for k, row in enumerate(rows):
+        scenario, metric = SCENARIOS[k // 6], row[1].split(" ")[0]
+        bold = [MODELS[j] for j, cell in enumerate(row[2:]) if cell.startswith("**")]
+        if scenario == "Roundabout" and metric.startswith("CR"):
+            assert bold == [], row  # every model at 0 %: a tie, no best
+        elif scenario == "Roundabout" and metric == "CS":
+            assert bold == [] and set(row[2:]) == {"–"}, row  # undefined
+        else:
+            assert bold == [BEST[metric]], row
+    assert rows[0][:4] == ["CPM", "CR_AA (%)", "0.50", "**0.20**"]
+
+
+def test_undefined_composite_score_is_explained():
+    summary = aggregate(hand_rows(collide_in_roundabout=False))
+    notes = composite_scores(summary).set_index(["scenario", "model"])["note"]
+    assert "no model collided" in notes[("Roundabout", "M0")]
+    assert notes[("CPM", "M0")] == ""
+
+
+def test_ties_as_printed_are_all_bold():
+    rows = hand_rows()
+    rows.loc[rows.model == "M5", "AS"] = rows.loc[rows.model == "M4", "AS"].to_numpy() + 0.001
+    markdown_rows = body(to_markdown(make_table(rows)))
+    as_row = next(r for r in markdown_rows if r[1] == "AS (m/s)")
+    assert as_row[6:8] == ["**0.70**", "**0.70**"]  # M4 0.700, M5 0.701: equal as printed
+
+
+def test_ci_and_paper_in_cells():
+    table = make_table(hand_rows(), paper=paper_values(MODELS))
+    rows = body(to_markdown(table, ci=True))
+    # CD of M0: 1.99, 2.00, 2.01 -> s = 0.01, half = 4.302653 · 0.01 / sqrt(3) = 0.0248;
+    # the paper's CPM M0 CD is 2.331 real cm.
+    cd = next(r for r in rows if r[1] == "CD (cm)")
+    assert cd[2] == "2.00 ± 0.02 (2.33)"
+    assert rows[0][2] == "0.50 (0.04)"  # collision rates have no spread here: no ±
+
+
+def test_latex_booktabs_and_escaping():
+    models = ["M0", "my_model", "M2"]
+    rows = hand_rows(models=models)
+    tex = to_latex(make_table(rows, models), ci=True)
+    for rule in (r"\toprule", r"\midrule", r"\bottomrule", r"\begin{tabular}{lrrr}"):
+        assert rule in tex
+    assert "my\\_model" in tex and "CR\\_total (\\%)" in tex
+    assert r"\textit{On-Ramp}" in tex
+    body_lines = [ln for ln in tex.splitlines() if not ln.startswith("%")]
+    text = "\n".join(body_lines)
+    assert not re.search(r"(?<!\\)[_%&#]", text), "unescaped special character"
+    assert text.count("{") == text.count("}")
+    # CR_AA of M0, my_model, M2 = 0.5, 0.2, 0.3 %: my_model is bold; minus signs typeset.
+    cr_aa = next(ln for ln in body_lines if ln.startswith("CR\\_AA"))
+    assert cr_aa.split(" & ")[2].startswith(r"\textbf{0.20")
+    cs = next(ln for ln in body_lines if ln.startswith("CS "))
+    assert "$-$" in cs and " -" not in cs
+    assert all(ln.endswith("\\\\") for ln in body_lines if " & " in ln)
+
+
+def test_csv_round_trips_with_pandas(tmp_path):
+    table = make_table(hand_rows(), paper=paper_values(MODELS))
+    frame = to_csv_frame(table)
+    frame.to_csv(tmp_path / "table.csv", index=False)
+    back = pd.read_csv(tmp_path / "table.csv")
+    pd.testing.assert_frame_equal(back, frame, check_dtype=False)
+    assert list(back.columns) == ["scenario", "metric", "unit", "source", *MODELS]
+    ours = back[back.source == "ours"].set_index(["scenario", "metric"])
+    paper = back[back.source == "paper"].set_index(["scenario", "metric"])
+    assert ours.shape[0] == paper.shape[0] == 24
+    assert ours.loc[("CPM", "CR_AA"), "M1"] == pytest.approx(0.2)  # percent, unrounded
+    assert paper.loc[("CPM", "CS"), "M4"] == pytest.approx(0.28)
+    assert ours.loc[("CPM", "CR_AA"), "unit"] == "percent"
