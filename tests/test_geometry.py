@@ -26,7 +26,14 @@ from sigmarl.env.geometry import (
 F64 = torch.float64
 SETTINGS = settings(max_examples=200, deadline=None)
 
-coord = st.floats(-5.0, 5.0, allow_nan=False, allow_infinity=False)
+
+# Rounded to 1e-9 m: hypothesis likes values such as 1e-252, whose squares underflow inside
+# shapely (it then reports an infinite distance); ties and exact touching remain reachable.
+def coords(lo: float, hi: float) -> st.SearchStrategy[float]:
+    return st.floats(lo, hi).map(lambda v: round(v, 9))
+
+
+coord = coords(-5.0, 5.0)
 xy = st.tuples(coord, coord)
 grid_xy = st.tuples(st.integers(-3, 3), st.integers(-3, 3))
 polyline_st = st.lists(xy, min_size=2, max_size=8)
@@ -34,7 +41,7 @@ heading_st = st.floats(-math.pi, math.pi)
 pose_st = st.tuples(xy, heading_st, st.floats(0.05, 1.0), st.floats(0.02, 0.5))
 # Poses close together, so that random pairs overlap about as often as not.
 near_pose_st = st.tuples(
-    st.tuples(st.floats(-0.6, 0.6), st.floats(-0.6, 0.6)),
+    st.tuples(coords(-0.6, 0.6), coords(-0.6, 0.6)),
     heading_st,
     st.floats(0.05, 1.0),
     st.floats(0.02, 0.5),
@@ -344,12 +351,12 @@ def test_segments_intersect_hand_cases_float32():
 @SETTINGS
 @given(
     st.tuples(
-        st.tuples(st.floats(-1, 1), st.floats(-1, 1)),
+        st.tuples(coords(-1, 1), coords(-1, 1)),
         heading_st,
         st.floats(0.1, 2),
         st.floats(0.1, 2),
     ),
-    st.lists(st.tuples(st.floats(-2, 2), st.floats(-2, 2)), min_size=2, max_size=6),
+    st.lists(st.tuples(coords(-2, 2), coords(-2, 2)), min_size=2, max_size=6),
 )
 def test_polyline_rect_overlap_matches_shapely(pose, vertices):
     rect = corners_of(pose)

@@ -21,14 +21,21 @@ class MapConfig:
     kind: str = "cpm"  # cpm | intersection | on_ramp | roundabout | osm
     route_set: str = "intersection"  # cpm only: intersection | loops
     lane_width: float = 0.20  # procedural and OSM maps (CPM is fixed at 0.15)
-    # intersection builder
+    # intersection and roundabout builders: arms at angles 2*pi*k/n_arms (k=0 east);
+    # arm k's straight lanes are arm_lengths[k % len] long (empty: arm_length for all)
     arm_length: float = 1.25
+    arm_lengths: list[float] = field(default_factory=list)
     n_arms: int = 4
+    junction_offset: float = 0.45  # intersection: junction center to where the arms start
     # roundabout builder
-    radius: float = 0.55
+    radius: float = 0.55  # ring center-line radius
+    entry_radius: float = 0.35  # arcs joining the arms to the ring
     # on-ramp builder
     n_ramps: int = 2
     main_length: float = 4.1
+    ramp_drop: float = 1.63  # ramp start below the main road's center line
+    ramp_angle: float = 45.0  # degrees
+    ramp_radius: float = 0.8  # bend onto the main road
     # OSM file (kind=osm): path, and optional explicit routes as lists of way/lanelet ids
     path: str = ""
     routes: list[Any] = field(default_factory=list)

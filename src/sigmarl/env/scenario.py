@@ -17,15 +17,11 @@ from vmas.simulator.core import Agent, Box, World
 from vmas.simulator.scenario import BaseScenario
 
 from sigmarl.env.dynamics import bicycle_step
-from sigmarl.env.geometry import (
-    pairwise_rect_overlap,
-    point_polyline_distance,
-    polyline_rect_overlap,
-    rect_corners,
-)
+from sigmarl.env.collision import pairwise_box_overlap, polyline_box_overlap
+from sigmarl.env.geometry import point_polyline_distance, rect_corners
 from sigmarl.env.observation import ObsFlags, ObsInputs, build_observation
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
-from sigmarl.env.route_bank import RouteBank
+from sigmarl.env.route_bank import CENTER, LEFT, RouteBank
 from sigmarl.env.spawn import sample_spawns, spawn_index_range
 from sigmarl.maps.model import RoadMap
 
@@ -33,10 +29,11 @@ LENGTH, WIDTH = 0.16, 0.08
 MAX_SPEED = 0.8
 MAX_STEER = math.radians(35)
 DT = 0.05
-# Window sizes (in resampled points) for local searches around an agent's progress index.
-CENTER_WINDOW = (-3, 8)  # an agent moves at most 0.04 m (half a point) per step
-BOUNDARY_WINDOW = (-6, 7)  # dense boundary points (0.02 m) around the nearest one
-LOOKAHEAD_POINTS = 5  # 1 behind .. 3 ahead of the closest corridor point
+# Windows of points around an agent's progress index (spacing: 0.08 m on the center line
+# and the observed boundary points, 0.02 m on the dense boundaries).
+CENTER_WINDOW = (-3, 8)  # progress search: an agent moves at most 0.04 m per step
+LINE_WINDOW = (-6, 7)  # distances and collisions: +-0.48 m of center line, +-0.12 m of boundary
+SIDE_WINDOW = (-1, 4)  # observed boundary points: 1 behind .. 3 ahead of the closest
 
 
 class TrafficScenario(BaseScenario):
@@ -75,6 +72,16 @@ class TrafficScenario(BaseScenario):
                 )
             )
         self._agent_index = {a.name: i for i, a in enumerate(world.agents)}
+        ar = lambda lo, hi: torch.arange(lo, hi, device=device)  # noqa: E731
+        self._center_offsets = ar(*CENTER_WINDOW)
+        self._line_offsets = ar(*LINE_WINDOW)
+        self._side_offsets = ar(*SIDE_WINDOW)
+        # Reference points: +2, +4, +6 center points ahead, as slots of the line window.
+        self._ref_slots = -LINE_WINDOW[0] + ar(1, self.n_ref + 1) * self.ref_stride
+        if int(self._ref_slots[-1]) >= LINE_WINDOW[1] - LINE_WINDOW[0]:
+            raise ValueError("obs.n_ref_points x obs.ref_point_stride must be at most 6")
+        self._side_sign = torch.tensor([1.0, -1.0], device=device)
+        self._eye_big = torch.eye(self.n_agents, device=device) * 1e9
         self._alloc(batch_dim, device)
         return world
 
@@ -139,58 +146,49 @@ class TrafficScenario(BaseScenario):
     def _progress_index(self) -> None:
         """Closest center-line point, searched in a window ahead/behind the last one."""
         b = self.bank
-        offs = torch.arange(*CENTER_WINDOW, device=self.pos.device)
-        idx = b.index(self.route, self.index.unsqueeze(-1) + offs)
-        pts = b.gather(b.center, self.route, idx)
+        idx = b.center_index(self.route, self.index.unsqueeze(-1) + self._center_offsets)
+        pts = b.center[self.route.unsqueeze(-1).expand_as(idx), idx]
         d = (pts - self.pos.unsqueeze(-2)).norm(dim=-1)
         self.index = idx.gather(-1, d.argmin(-1, keepdim=True)).squeeze(-1)
 
     def _geometry(self) -> None:
         """Everything observation, reward and info read, for all agents at once."""
         b = self.bank
-        dev = self.pos.device
         self.corners = rect_corners(self.pos, self.heading, LENGTH, WIDTH)  # [E, A, 4, 2]
-        # Distance to the own center line: the segments around the progress index.
-        offs = torch.arange(-2, 3, device=dev)
-        cidx = b.index(self.route, self.index.unsqueeze(-1) + offs)
-        cline = b.gather(b.center, self.route, cidx)
-        self.d_center = point_polyline_distance(self.pos.unsqueeze(-2), cline)[0].squeeze(-1)
-        # Reference points ahead on the own route.
-        ahead = torch.arange(1, self.n_ref + 1, device=dev) * self.ref_stride
-        ridx = b.index(self.route, self.index.unsqueeze(-1) + ahead)
-        self.ref_points = b.gather(b.center, self.route, ridx)
-        # Corridor boundaries: distances, collisions and the observed points.
-        probe = torch.cat([self.pos.unsqueeze(-2), self.corners], dim=-2)  # [E, A, 5, 2]
-        self.d_side, self.side_points, self.side_hit = [], [], []
-        for dense, n_dense, to_dense, res, n_res, to_res, sign in (
-            (b.left_dense, b.n_left_dense, b.center_to_left, b.left_res, b.n_left_res, b.center_to_left_res, 1.0),
-            (b.right_dense, b.n_right_dense, b.center_to_right, b.right_res, b.n_right_res, b.center_to_right_res, -1.0),
-        ):
-            near = b.gather(to_dense, self.route, self.index.unsqueeze(-1)).squeeze(-1)
-            widx = b.index(self.route, near.unsqueeze(-1) + torch.arange(*BOUNDARY_WINDOW, device=dev), n_dense - b.is_loop.long())
-            line = b.gather(dense, self.route, widx)  # [E, A, W, 2]
-            dist, seg, _, _ = point_polyline_distance(probe, line)
-            d_db = torch.minimum(dist[..., 0] - WIDTH / 2, dist[..., 1:].min(-1).values)
-            # Outside the corridor without touching it (a big jump) also counts as a crossing.
-            s = seg[..., 0]
-            a = line.gather(-2, s[..., None, None].expand(*s.shape, 1, 2)).squeeze(-2)
-            c = line.gather(-2, (s + 1)[..., None, None].expand(*s.shape, 1, 2)).squeeze(-2)
-            cross = (c - a)[..., 0] * (self.pos - a)[..., 1] - (c - a)[..., 1] * (self.pos - a)[..., 0]
-            outside = sign * cross > 0
-            self.side_hit.append(polyline_rect_overlap(self.corners, line) | outside)
-            self.d_side.append(d_db)
-            near_res = b.gather(to_res, self.route, self.index.unsqueeze(-1)).squeeze(-1)
-            pidx = b.index(self.route, near_res.unsqueeze(-1) + torch.arange(-1, LOOKAHEAD_POINTS - 1, device=dev), n_res)
-            self.side_points.append(b.gather(res, self.route, pidx))
+        # One window on the center line and both dense corridor boundaries: [E, A, 3, W, 2].
+        lines = b.windows("lines", self.route, self.index, self._line_offsets)
+        probe = torch.cat([self.pos.unsqueeze(-2), self.corners], dim=-2).unsqueeze(-3)  # [E, A, 1, 5, 2]
+        dist, seg, _, _ = point_polyline_distance(probe, lines)  # [E, A, 3, 5]
+        self.d_center = dist[..., CENTER, 0]
+        # DB: min(center distance - half width, corner distances), per side.
+        sides = dist[..., LEFT:, :]
+        self.d_side = torch.minimum(sides[..., 0] - WIDTH / 2, sides[..., 1:].min(-1).values)  # [E, A, 2]
+        self.ref_points = lines[..., CENTER, self._ref_slots, :]
+        # Boundary collision: the box touches a boundary, or its center is already beyond
+        # one (left boundary: center to its right is inside; right boundary: to its left).
+        bnd = lines[..., LEFT:, :, :]  # [E, A, 2, W, 2]
+        s = seg[..., LEFT:, 0]  # closest segment to the center, per side
+        gi = s[..., None, None].expand(*s.shape, 1, 2)
+        a = bnd.gather(-2, gi).squeeze(-2)
+        c = bnd.gather(-2, gi + 1).squeeze(-2)
+        rel = self.pos.unsqueeze(-2) - a
+        cross = (c - a)[..., 0] * rel[..., 1] - (c - a)[..., 1] * rel[..., 0]
+        # Only trusted near the boundary: a far segment's line can put the center on either
+        # side on a curve, and a vehicle (<= 0.04 m a step) cannot get far beyond unnoticed.
+        outside = (cross * self._side_sign > 0) & (sides[..., 0] < 0.1)
+        touch = polyline_box_overlap(bnd, self.pos.unsqueeze(-2), self.heading.unsqueeze(-1), LENGTH, WIDTH)
+        self.side_hit = touch | outside  # [E, A, 2]
+        # Observed corridor points: 1 behind .. 3 ahead of the closest, per side: [E, A, 2, 5, 2].
+        self.side_points = b.windows("sides", self.route, self.index, self._side_offsets)
         # Other agents.
         self.distances = torch.cdist(self.pos, self.pos)
         k = min(self.flags.n_nearest, self.n_agents - 1)
-        masked = self.distances + torch.eye(self.n_agents, device=dev) * 1e9
+        masked = self.distances + self._eye_big
         self.neighbours = masked.topk(k, dim=-1, largest=False, sorted=True).indices
 
     def _collisions(self) -> None:
-        self.agent_collision = pairwise_rect_overlap(self.corners).any(-1)
-        self.lane_collision = self.side_hit[0] | self.side_hit[1]
+        self.agent_collision = pairwise_box_overlap(self.pos, self.heading, LENGTH, WIDTH).any(-1)
+        self.lane_collision = self.side_hit.any(-1)
 
     def _past_exit(self) -> torch.Tensor:
         """Non-loop agents whose center has passed the route's last real point."""
@@ -205,8 +203,8 @@ class TrafficScenario(BaseScenario):
         x = ObsInputs(
             pos=self.pos, heading=self.heading, speed=self.speed, vel=self.vel,
             ref_points=self.ref_points, d_center=self.d_center,
-            d_left=self.d_side[0], d_right=self.d_side[1],
-            left_points=self.side_points[0], right_points=self.side_points[1],
+            d_left=self.d_side[..., 0], d_right=self.d_side[..., 1],
+            left_points=self.side_points[..., 0, :, :], right_points=self.side_points[..., 1, :, :],
             corners=self.corners, neighbours=self.neighbours, distances=self.distances,
             length=LENGTH, width=WIDTH,
         )
@@ -274,7 +272,7 @@ class TrafficScenario(BaseScenario):
         self.terms = reward_terms(
             RewardInputs(
                 pos=self.pos, prev_pos=prev_pos, vel=self.vel, prev_ref_points=prev_ref,
-                d_boundary=torch.minimum(self.d_side[0], self.d_side[1]),
+                d_boundary=self.d_side.min(-1).values,
                 distances=self.distances, d_center=self.d_center,
                 steering=self.steering, prev_steering=self.prev_steering,
                 agent_collision=self.agent_collision, lane_collision=self.lane_collision,

@@ -1,0 +1,1 @@
+"""Evaluation: test-mode rollouts of trained policies and the study metrics."""
