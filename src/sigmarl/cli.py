@@ -51,6 +51,17 @@ def cmd_maps(args: argparse.Namespace) -> None:
     print(f"wrote {out}")
 
 
+def cmd_train(args: argparse.Namespace) -> None:
+    from sigmarl.compose import compose_config
+    from sigmarl.training import train
+
+    result = train(compose_config(args.overrides))
+    best = "n/a" if result.best_reward is None else f"{result.best_reward:.2f}"
+    state = "finished" if result.finished else "stopped (resume with resume=true)"
+    print(f"{state} after {result.iterations} iterations; best mean episode reward {best}; "
+          f"checkpoints in {result.run_dir}" + (f"; MLflow run {result.run_id}" if result.run_id else ""))
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="sigmarl",
@@ -64,6 +75,12 @@ def build_parser() -> argparse.ArgumentParser:
     maps.add_argument("--ids", action="store_true", help="label lanelet ids")
     maps.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. map.lane_width=0.25")
     maps.set_defaults(func=cmd_maps)
+    train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow)")
+    train.add_argument(
+        "overrides", nargs="*", default=[],
+        help="Hydra overrides, e.g. obs=no_ego_view seed=3 ppo=smoke resume=true",
+    )
+    train.set_defaults(func=cmd_train)
     return p
 
 

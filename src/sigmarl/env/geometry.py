@@ -60,7 +60,7 @@ def _segment_mask(n_segments: int, n_valid: Tensor | None, device: torch.device)
         return None
     n_valid = torch.as_tensor(n_valid, device=device)
     idx = torch.arange(n_segments, device=device)
-    return idx < (n_valid.unsqueeze(-1) - 1)
+    return idx < n_valid.unsqueeze(-1)
 
 
 def point_polyline_distance(
@@ -194,7 +194,7 @@ def polyline_rect_overlap(rect: Tensor, polyline: Tensor, n_valid: Tensor | None
     seg_normal = _unit(torch.stack((-d[..., 1], d[..., 0]), dim=-1)).unsqueeze(-2)
     rect_s = rect.unsqueeze(-3)  # [..., 1, 4, 2]
     rect_axes = _edge_normals(rect_s)
-    axes = rect_axes
+    axes = _concat_axes(rect_axes, seg_normal)
     hit = _sat_overlap(axes, rect_s, seg)  # [..., S]
     mask = _segment_mask(polyline.shape[-2] - 1, n_valid, polyline.device)
     if mask is not None:

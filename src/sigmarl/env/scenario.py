@@ -55,8 +55,13 @@ class TrafficScenario(BaseScenario):
             end_fraction=float(kwargs.get("spawn_end_fraction", 0.5)),
             margin_m=float(kwargs.get("spawn_margin_m", 0.25)),
         )
+        # Separate streams: spawns must not depend on how much noise the observation
+        # design draws, so that every model faces the same initial states.
+        seed = int(kwargs.get("seed", 0))
         self.rng = torch.Generator(device=device)
-        self.rng.manual_seed(int(kwargs.get("seed", 0)))
+        self.rng.manual_seed(seed)
+        self.noise_rng = torch.Generator(device=device)
+        self.noise_rng.manual_seed(seed + 7919)
 
         world = World(batch_dim, device, dt=DT, substeps=1, drag=0.0)
         for i in range(self.n_agents):
@@ -210,7 +215,7 @@ class TrafficScenario(BaseScenario):
         )
         obs = build_observation(x, self.flags)
         if self.noise > 0:
-            u = torch.rand(obs.shape, generator=self.rng, device=obs.device)
+            u = torch.rand(obs.shape, generator=self.noise_rng, device=obs.device)
             obs = obs + (u - 0.5) * self.noise
         self.obs = obs
         self.obs_ref_points = self.ref_points  # what the next reward measures progress against

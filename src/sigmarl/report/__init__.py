@@ -1,9 +1,11 @@
-"""The study's report: aggregation, composite score, Table I, figures."""
+"""The study's report: aggregation, composite score, Table I, figures.
+
+Figures live in `sigmarl.report.figures` (imported on use, since matplotlib is slow to load).
+"""
 
 from sigmarl.report.aggregate import aggregate, trim_collisions
 from sigmarl.report.build import Report, build_report
 from sigmarl.report.composite import CompositeScore, composite_score, composite_scores
-from sigmarl.report.figures import plot_distributions, plot_training_curves
 from sigmarl.report.paper import paper_table, paper_values
 from sigmarl.report.stats import mean_ci, t_critical
 from sigmarl.report.tables import (
@@ -28,8 +30,6 @@ __all__ = [
     "mean_ci",
     "paper_table",
     "paper_values",
-    "plot_distributions",
-    "plot_training_curves",
     "t_critical",
     "to_csv_frame",
     "to_latex",

@@ -9,7 +9,6 @@ import pandas as pd
 
 from sigmarl.report.aggregate import aggregate, model_order, scenario_order, validate_rows
 from sigmarl.report.composite import composite_scores
-from sigmarl.report.figures import plot_distributions, plot_training_curves
 from sigmarl.report.paper import paper_values
 from sigmarl.report.tables import ResultTable, build_table, to_csv_frame, to_latex, to_markdown
 from sigmarl.study import MODELS
@@ -49,6 +48,9 @@ def _notes(
     if trim:
         notes.append("Collision rates without each evaluation's best and worst simulation.")
     for scenario, g in composite.groupby("scenario", sort=False):
+        absent = [m for m in models if m not in set(g["model"])]
+        if absent:  # the scores then compare fewer models than the table's columns
+            notes.append(f"{scenario}: no evaluation rows for {', '.join(absent)}.")
         for note in dict.fromkeys(g["note"]):
             if note:
                 notes.append(f"{scenario}: {note}.")
@@ -115,6 +117,9 @@ def build_report(
         paths["latex"] = out_dir / "table.tex"
         paths["latex"].write_text(to_latex(table, ci=ci), encoding="utf-8")
     if figures:
+        # matplotlib is imported only when drawing: table-only reports stay quick to start
+        from sigmarl.report.figures import plot_distributions, plot_training_curves
+
         scenarios = scenario_order(rows)
         paths["distributions"] = plot_distributions(
             rows[rows["model"].isin(models)], models, scenarios, out_dir / "distributions.png"

@@ -72,7 +72,7 @@ def best_mask(values: pd.DataFrame, digits: int = DIGITS) -> pd.DataFrame:
     mask = pd.DataFrame(False, index=values.index, columns=values.columns)
     for key, row in shown.iterrows():
         finite = row.dropna()
-        if finite.empty or finite.nunique() == 1 and len(finite) == len(row):
+        if finite.empty or (finite.nunique() == 1 and len(finite) == len(row)):
             continue  # nothing to compare, or every model ties
         best = finite.min() if key[-1] in LOWER_IS_BETTER else finite.max()
         mask.loc[key] = row == best

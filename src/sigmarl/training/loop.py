@@ -1,0 +1,246 @@
+"""`train(cfg)`: the MAPPO training loop, checkpointed, resumable, tracked in MLflow.
+
+Exact resume: every iteration starts from a state that depends only on (seed, iteration):
+the global generators and the environment are reseeded and every environment is reset. A
+checkpoint after iteration k (weights, optimiser, best reward, RNG states) is therefore all
+that iteration k+1 needs, and a resumed run ends with the same weights as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from omegaconf import DictConfig, OmegaConf
+from tqdm import tqdm
+
+from sigmarl.errors import SigmarlError
+from sigmarl.tracking import Tracker, flatten
+from sigmarl.training import checkpoint as ckpt
+from sigmarl.training.mappo import collect, make_gae, make_loss, rollout_stats, update
+from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic
+
+RUN_ID_FILE = "mlflow_run_id"
+CONFIG_FILE = "config.yaml"
+# config keys that may differ between an interrupted run and its resume
+RESUME_MAY_CHANGE = {"resume", "ppo.stop_after", "threads", "device", "tracking.enabled"}
+
+
+@dataclass
+class TrainResult:
+    run_dir: Path
+    iterations: int  # completed so far
+    finished: bool
+    best_reward: float | None
+    run_id: str | None
+    history: list[dict[str, float]] = field(default_factory=list)  # this invocation's iterations
+
+
+def iteration_seed(seed: int, iteration: int) -> int:
+    """A well-mixed 31-bit seed per (run seed, iteration)."""
+    return int(np.random.SeedSequence([seed, iteration]).generate_state(1)[0] >> 1)
+
+
+def learning_rate(ppo: DictConfig, iteration: int) -> float:
+    """Linear from ppo.lr at the first iteration (0) to ppo.lr_final at the last."""
+    frac = iteration / max(ppo.iterations - 1, 1)
+    return ppo.lr + (ppo.lr_final - ppo.lr) * frac
+
+
+def _check(cfg: DictConfig) -> int:
+    """Budget sanity; returns the rollout length per iteration."""
+    ppo = cfg.ppo
+    for key in ("iterations", "frames_per_iteration", "num_envs", "epochs", "minibatch_size"):
+        if ppo[key] < 1:
+            raise SigmarlError(f"ppo.{key} must be positive, got {ppo[key]}")
+    if ppo.frames_per_iteration % ppo.num_envs:
+        raise SigmarlError(
+            f"ppo.frames_per_iteration={ppo.frames_per_iteration} is not a multiple of "
+            f"ppo.num_envs={ppo.num_envs}"
+        )
+    if ppo.minibatch_size > ppo.frames_per_iteration:
+        raise SigmarlError(
+            f"ppo.minibatch_size={ppo.minibatch_size} exceeds ppo.frames_per_iteration="
+            f"{ppo.frames_per_iteration}"
+        )
+    if cfg.threads < 1:
+        raise SigmarlError(f"threads must be positive, got {cfg.threads}")
+    return ppo.frames_per_iteration // ppo.num_envs
+
+
+def _device(name: str) -> torch.device:
+    try:
+        device = torch.device(name)
+    except RuntimeError as e:
+        raise SigmarlError(f"unknown device {name!r} (use cpu or cuda)") from e
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise SigmarlError("device=cuda but no CUDA GPU is available; use device=cpu")
+    return device
+
+
+def _resume_point(cfg: DictConfig, run_dir: Path, device: torch.device) -> dict[str, Any] | None:
+    path = run_dir / ckpt.RESUME_FILE
+    if not cfg.resume:
+        if path.exists():
+            raise SigmarlError(
+                f"{run_dir} already holds a training run ({ckpt.RESUME_FILE}); pass resume=true "
+                "to continue it, or choose another run_dir=..."
+            )
+        return None
+    state = ckpt.load(path, device)
+    old, new = flatten(state["config"]), flatten(OmegaConf.to_container(cfg, resolve=True))
+    changed = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
+    changed = [k for k in changed if k not in RESUME_MAY_CHANGE]
+    if changed:
+        diffs = ", ".join(f"{k}: {old.get(k)} -> {new.get(k)}" for k in changed[:5])
+        raise SigmarlError(f"cannot resume {path} with a different config ({diffs})")
+    return state
+
+
+def _env_dims(env: Any) -> dict[str, Any]:
+    obs_shape = env.full_observation_spec[OBS].shape
+    box = env.full_action_spec[ACTION].space
+    n_act = box.low.shape[-1]
+    return {
+        "obs_dim": int(obs_shape[-1]),
+        "n_agents": int(obs_shape[-2]),
+        "action_low": box.low.reshape(-1, n_act)[0].cpu(),
+        "action_high": box.high.reshape(-1, n_act)[0].cpu(),
+    }
+
+
+def train(cfg: DictConfig) -> TrainResult:
+    steps = _check(cfg)
+    torch.set_num_threads(cfg.threads)
+    device = _device(cfg.device)
+    run_dir = Path(cfg.run_dir)
+    state = _resume_point(cfg, run_dir, device)
+    start = state["iteration"] if state else 0
+    run_id = state.get("mlflow_run_id") if state else None
+    best = state.get("best_reward") if state else None
+    if state and start >= cfg.ppo.iterations:
+        print(f"{run_dir}: training already finished ({start} iterations)")
+        return TrainResult(run_dir, start, True, best, run_id)
+
+    from sigmarl.env import make_env
+
+    env = make_env(cfg, num_envs=cfg.ppo.num_envs, mode="train", seed=cfg.seed, device=str(device))
+    dims = _env_dims(env)
+    torch.manual_seed(cfg.seed)  # network initialisation
+    actor = make_actor(cfg.network, dims["obs_dim"], dims["n_agents"], dims["action_low"],
+                       dims["action_high"], device)
+    critic = make_critic(cfg.network, dims["obs_dim"], dims["n_agents"], device)
+    loss, gae = make_loss(actor, critic, cfg.ppo), make_gae(critic, cfg.ppo)
+    optimiser = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=cfg.ppo.lr)
+    if state:
+        actor.load_state_dict(state["policy"])
+        critic.load_state_dict(state["critic"])
+        optimiser.load_state_dict(state["optimizer"])
+        ckpt.set_rng_state(state["rng"])
+
+    tracker = Tracker.open(cfg, run_id if cfg.tracking.enabled else None)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if tracker.enabled and tracker.run_id != run_id:
+        run_id = tracker.run_id
+        (run_dir / RUN_ID_FILE).write_text(f"{run_id}\n")
+    if not state:
+        (run_dir / CONFIG_FILE).write_text(OmegaConf.to_yaml(cfg, resolve=True))
+        tracker.log_artifact(run_dir / CONFIG_FILE)
+
+    def snapshot(iteration: int, reward: float) -> dict[str, Any]:
+        return {
+            "format": ckpt.FORMAT,
+            "iteration": iteration,
+            "policy": actor.state_dict(),
+            "critic": critic.state_dict(),
+            "optimizer": optimiser.state_dict(),
+            "rng": ckpt.rng_state(),
+            "best_reward": best,
+            "mean_episode_reward": reward,
+            "mlflow_run_id": run_id,
+            "config": OmegaConf.to_container(cfg, resolve=True),
+            "dims": dims,
+        }
+
+    ppo = cfg.ppo
+    stop = min(ppo.stop_after, ppo.iterations) if ppo.stop_after > 0 else ppo.iterations
+    pending: list[tuple[int, dict[str, float]]] = []  # metrics not yet sent (see below)
+    history: list[dict[str, float]] = []
+    bar = tqdm(total=ppo.iterations, initial=start, desc="train", unit="it", dynamic_ncols=True)
+    try:
+        for it in range(start, stop):
+            t0 = time.perf_counter()
+            s = iteration_seed(cfg.seed, it)
+            torch.manual_seed(s)
+            env.set_seed(s)
+            for group in optimiser.param_groups:
+                group["lr"] = learning_rate(ppo, it)
+            data = collect(env, actor, steps)
+            t1 = time.perf_counter()
+            with torch.no_grad():
+                gae(data)
+            t2 = time.perf_counter()
+            losses = update(data, loss, optimiser, ppo)
+            t3 = time.perf_counter()
+            metrics = {
+                **rollout_stats(data),
+                **losses,
+                "lr": optimiser.param_groups[0]["lr"],
+                "frames_per_s": ppo.frames_per_iteration / (t3 - t0),
+                "time_collect_s": t1 - t0,
+                "time_advantage_s": t2 - t1,
+                "time_optimise_s": t3 - t2,
+            }
+            done_its = it + 1
+            history.append(metrics)
+            pending.append((done_its, metrics))
+            reward = metrics["episode_reward_mean"]
+            if best is None or round(reward, 2) > best:  # the paper: best reward to 2 decimals
+                best = round(reward, 2)
+                ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.BEST_FILE)
+            last = done_its == stop
+            if done_its % ppo.checkpoint_every == 0 or last:
+                # metrics go out together with a checkpoint, so a resume never logs an
+                # iteration twice
+                tracker.log_metrics(pending)
+                pending = []
+                ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.RESUME_FILE)
+            if done_its == ppo.iterations:
+                ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.FINAL_FILE)
+            bar.update(1)
+            bar.set_postfix(fps=f"{metrics['frames_per_s']:.0f}", reward=f"{reward:.3f}")
+    except KeyboardInterrupt:
+        tracker.finish("KILLED")
+        raise
+    except BaseException:
+        tracker.finish("FAILED")
+        raise
+    finally:
+        bar.close()
+        env.close()
+    finished = stop == ppo.iterations
+    if finished:
+        tracker.log_artifact(run_dir / ckpt.BEST_FILE)
+        tracker.log_artifact(run_dir / ckpt.FINAL_FILE)
+    tracker.finish("FINISHED" if finished else "KILLED")
+    return TrainResult(run_dir, stop, finished, best, run_id, history)
+
+
+def load_policy(
+    path: str | Path, n_agents: int | None = None, device: str | torch.device = "cpu"
+) -> tuple[torch.nn.Module, dict[str, Any]]:
+    """The trained actor of a checkpoint (best.pt, final.pt, checkpoint.pt) and the checkpoint.
+
+    `n_agents` may differ from training: the policy's parameters are shared by all agents.
+    """
+    state = ckpt.load(Path(path), device)
+    dims = state["dims"]
+    net = OmegaConf.create(state["config"]).network
+    actor = make_actor(net, dims["obs_dim"], n_agents or dims["n_agents"], dims["action_low"],
+                       dims["action_high"], device)
+    actor.load_state_dict(state["policy"])
+    return actor, state

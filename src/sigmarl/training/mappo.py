@@ -1,0 +1,137 @@
+"""MAPPO pieces: rollout collection, GAE, the clipped-PPO update.
+
+Batches are torchrl tensordicts shaped [envs, time] with the agents one level down
+(("agents", "observation") is [envs, time, agents, D]).
+"""
+
+from __future__ import annotations
+
+import torch
+from omegaconf import DictConfig
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModule
+from torchrl.envs import EnvBase
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+from torchrl.modules import ProbabilisticActor
+from torchrl.objectives import ClipPPOLoss
+from torchrl.objectives.value import GAE
+
+from sigmarl.training.networks import ACTION, OBS, VALUE
+
+REWARD = ("agents", "reward")
+DONE, TERMINATED = ("agents", "done"), ("agents", "terminated")
+ADVANTAGE, VALUE_TARGET = ("agents", "advantage"), ("agents", "value_target")
+LOG_PROB = ("agents", "action_log_prob")
+LOSS_KEYS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "clip_fraction", "kl_approx")
+# what the update needs from a rollout; dropping the rest makes minibatch indexing cheaper
+TRAIN_KEYS = [OBS, ACTION, LOG_PROB, ADVANTAGE, VALUE_TARGET]
+
+
+def make_loss(actor: ProbabilisticActor, critic: TensorDictModule, ppo: DictConfig) -> ClipPPOLoss:
+    loss = ClipPPOLoss(
+        actor,
+        critic,
+        clip_epsilon=ppo.clip_epsilon,
+        entropy_coeff=ppo.entropy_coef,
+        critic_coeff=1.0,
+        loss_critic_type="smooth_l1",
+        normalize_advantage=ppo.normalize_advantage,
+        log_explained_variance=False,
+    )
+    loss.set_keys(
+        reward=REWARD,
+        action=ACTION,
+        sample_log_prob=LOG_PROB,
+        value=VALUE,
+        done=DONE,
+        terminated=TERMINATED,
+        advantage=ADVANTAGE,
+        value_target=VALUE_TARGET,
+    )
+    return loss
+
+
+def make_gae(critic: TensorDictModule, ppo: DictConfig) -> GAE:
+    gae = GAE(gamma=ppo.gamma, lmbda=ppo.lmbda, value_network=critic, average_gae=False, time_dim=1)
+    gae.set_keys(
+        reward=REWARD,
+        done=DONE,
+        terminated=TERMINATED,
+        value=VALUE,
+        advantage=ADVANTAGE,
+        value_target=VALUE_TARGET,
+    )
+    return gae
+
+
+def collect(env: EnvBase, actor: ProbabilisticActor, steps: int) -> TensorDictBase:
+    """`steps` steps of every environment from a fresh reset, sampling actions.
+
+    The last step is marked done (not terminated): the iteration boundary cuts episodes like a
+    time-out, so GAE bootstraps it from the value of the next observation.
+    """
+    with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+        data = env.rollout(steps, actor, auto_reset=True, break_when_any_done=False)
+    nxt = data["next"]
+    done = nxt["done"].clone()
+    done[:, -1] = True
+    nxt["done"] = done
+    if "truncated" in nxt.keys():
+        truncated = nxt["truncated"].clone()
+        truncated[:, -1] |= ~nxt["terminated"][:, -1]
+        nxt["truncated"] = truncated
+    # done flags are per environment [E, T, 1]; GAE wants them beside the per-agent rewards
+    shape = nxt.get(REWARD).shape
+    nxt.set(DONE, done.unsqueeze(-2).expand(shape))
+    nxt.set(TERMINATED, nxt["terminated"].unsqueeze(-2).expand(shape))
+    return data
+
+
+def rollout_stats(data: TensorDictBase) -> dict[str, float]:
+    """Mean episode reward (per agent) and the mean of every per-agent info of the rollout.
+
+    Every step lies in exactly one episode that ends inside the rollout (the last step is
+    done), so the mean episode reward is the reward sum over the number of agent-episodes.
+    """
+    reward = data["next"].get(REWARD)
+    n_agents = reward.shape[-2]
+    episodes = data["next", "done"].sum() * n_agents
+    stats = {
+        "episode_reward_mean": reward.sum() / episodes,
+        "reward_mean": reward.mean(),
+        "episodes": episodes / n_agents,
+    }
+    info = data["next"].get(("agents", "info"), None)
+    if info is not None:
+        for key, value in info.items(include_nested=True, leaves_only=True):
+            name = key if isinstance(key, str) else "_".join(key)
+            stats[f"train_{name}"] = value.float().mean()
+    return {k: float(v) for k, v in stats.items()}
+
+
+def update(
+    data: TensorDictBase,
+    loss: ClipPPOLoss,
+    optimiser: torch.optim.Optimizer,
+    ppo: DictConfig,
+) -> dict[str, float]:
+    """`epochs` passes of shuffled minibatches over the rollout; returns the mean losses."""
+    flat = data.select(*TRAIN_KEYS).reshape(-1)
+    n = flat.shape[0]
+    per_epoch = n // ppo.minibatch_size
+    params = [p for group in optimiser.param_groups for p in group["params"]]
+    totals = torch.zeros(len(LOSS_KEYS), device=flat.device)
+    for _ in range(ppo.epochs):
+        order = torch.randperm(n, device=flat.device)
+        for b in range(per_epoch):
+            batch = flat[order[b * ppo.minibatch_size : (b + 1) * ppo.minibatch_size]]
+            out = loss(batch)
+            total = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
+            optimiser.zero_grad(set_to_none=True)
+            total.backward()
+            torch.nn.utils.clip_grad_norm_(params, ppo.max_grad_norm)
+            optimiser.step()
+            # summed on the device: one host sync per iteration, not per step
+            totals += torch.stack([out[k].detach() for k in LOSS_KEYS])
+    means = (totals / (ppo.epochs * per_epoch)).tolist()
+    return dict(zip(LOSS_KEYS, means, strict=True))
