@@ -25,6 +25,7 @@ from sigmarl.env.geometry import (
 
 F64 = torch.float64
 SETTINGS = settings(max_examples=200, deadline=None)
+FEW = settings(max_examples=100, deadline=None)  # checks that need no shapely oracle
 
 
 # Rounded to 1e-9 m: hypothesis likes values such as 1e-252, whose squares underflow inside
@@ -88,7 +89,7 @@ def test_wrap_angle_hand_values():
     assert out[1].item() == math.pi
 
 
-@SETTINGS
+@FEW
 @given(st.floats(-1e3, 1e3), st.sampled_from([torch.float32, F64]))
 def test_wrap_angle_range_and_equivalence(a, dtype):
     x = torch.tensor(a, dtype=dtype)
@@ -178,7 +179,7 @@ def test_point_polyline_hand_values_and_zero_length_segments():
     torch.testing.assert_close(proj[:3], t64([[1.0, 0.0], [2.0, 1.5], [0.0, 0.0]]))
 
 
-@SETTINGS
+@FEW
 @given(st.lists(xy, min_size=1, max_size=4), polyline_st, st.lists(xy, min_size=1, max_size=4))
 def test_point_polyline_padding_is_ignored(points, vertices, padding):
     pts, pl = t64(points), t64(vertices)
@@ -391,7 +392,7 @@ def test_polyline_rect_overlap_hand_cases():
     assert bool(polyline_rect_overlap(rect, through))
 
 
-@SETTINGS
+@FEW
 @given(pose_st, polyline_st, st.lists(xy, min_size=1, max_size=4))
 def test_polyline_rect_overlap_padding_is_ignored(pose, vertices, padding):
     rect = corners_of(pose)

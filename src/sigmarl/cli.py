@@ -62,6 +62,49 @@ def cmd_train(args: argparse.Namespace) -> None:
           f"checkpoints in {result.run_dir}" + (f"; MLflow run {result.run_id}" if result.run_id else ""))
 
 
+def cmd_evaluate(args: argparse.Namespace) -> None:
+    from omegaconf import open_dict
+
+    from sigmarl.compose import compose_config
+    from sigmarl.evaluation.study import evaluate_and_log, resolve_checkpoint
+
+    cfg = compose_config(args.overrides)
+    if args.scenario:
+        with open_dict(cfg):
+            cfg.eval.scenarios = list(args.scenario)
+    path = resolve_checkpoint(args.target, cfg)
+    rows, run_id = evaluate_and_log(path, cfg, train_run_id=None)
+    means = rows.groupby("scenario", sort=False)[["CR_AA", "CR_AL", "CR_total", "CD", "AS"]].mean()
+    means[["CR_AA", "CR_AL", "CR_total"]] *= 100
+    print(f"{rows['model'].iloc[0]} ({path}), {cfg.eval.n_sims} simulations x {cfg.eval.steps} steps, "
+          f"seed {cfg.eval.seed}: collision rates in %, CD in cm, AS in m/s")
+    print(means.round(3).to_string())
+    if args.out:
+        rows.to_csv(args.out, index=False)
+        print(f"wrote {args.out}")
+    if run_id:
+        print(f"MLflow evaluation run {run_id} in experiment {cfg.tracking.experiment!r}")
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from sigmarl.sweep import run_sweep
+
+    return run_sweep(args.overrides)
+
+
+def cmd_report(args: argparse.Namespace) -> None:
+    from sigmarl.compose import compose_config
+    from sigmarl.report.study import make_report
+
+    cfg = compose_config(args.overrides)
+    models = args.models.split(",") if args.models else None
+    report = make_report(cfg, out_dir=Path(args.out) if args.out else None, latex=args.latex,
+                         trim=args.trim, compare_paper=args.compare_paper, models=models,
+                         ci=args.ci, figures=not args.no_figures)
+    print(report.markdown)  # the table's notes are part of it
+    print("wrote " + ", ".join(str(p) for p in report.paths.values()))
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="sigmarl",
@@ -81,6 +124,26 @@ def build_parser() -> argparse.ArgumentParser:
         help="Hydra overrides, e.g. obs=no_ego_view seed=3 ppo=smoke resume=true",
     )
     train.set_defaults(func=cmd_train)
+    ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios")
+    ev.add_argument("target", help="checkpoint file, training run folder, or MLflow training run id")
+    ev.add_argument("--scenario", action="append", help="CPM, Intersection, On-Ramp or Roundabout (repeatable; default all)")
+    ev.add_argument("--out", help="also write the per-simulation rows to this CSV")
+    ev.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. eval.n_sims=8 eval.steps=600")
+    ev.set_defaults(func=cmd_evaluate)
+    sw = sub.add_parser("sweep", help="train the six models in parallel (Hydra multirun), then evaluate each")
+    sw.add_argument("overrides", nargs="*", default=[],
+                    help="Hydra overrides, e.g. study=quick seeds=[0,1,2] models=[M0,M4] hydra.launcher.n_jobs=3")
+    sw.set_defaults(func=cmd_sweep)
+    rp = sub.add_parser("report", help="the results table (paper's Table I layout), composite scores, figures")
+    rp.add_argument("--latex", action="store_true", help="also write table.tex (booktabs)")
+    rp.add_argument("--trim", action="store_true", help="drop the best and worst simulation for collision rates, as the paper did")
+    rp.add_argument("--compare-paper", action="store_true", help="show the paper's numbers beside ours")
+    rp.add_argument("--ci", action="store_true", help="show 95%% confidence half-widths in the cells")
+    rp.add_argument("--models", help="comma-separated models to compare (default: all evaluated)")
+    rp.add_argument("--out", help="output folder (default: reports/<experiment>)")
+    rp.add_argument("--no-figures", action="store_true", help="tables only")
+    rp.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. study=quick or tracking.experiment=NAME")
+    rp.set_defaults(func=cmd_report)
     return p
 
 
@@ -88,14 +151,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        args.func(args)
+        rc = args.func(args)
     except SigmarlError as e:
         print(f"sigmarl: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("sigmarl: interrupted", file=sys.stderr)
         return 130
-    return 0
+    return rc if isinstance(rc, int) else 0
 
 
 if __name__ == "__main__":

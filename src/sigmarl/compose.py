@@ -5,11 +5,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from hydra import compose, initialize_config_dir
+from hydra.core.global_hydra import GlobalHydra
 from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from sigmarl.config import register_configs
+from sigmarl.config import MapConfig, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.paths import conf_dir
 
@@ -17,6 +18,8 @@ from sigmarl.paths import conf_dir
 def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:
     """The resolved config; a bad override raises SigmarlError with Hydra's message (which names the key)."""
     register_configs()
+    # After a Hydra app (the sweep) has run in this process its global state lingers.
+    GlobalHydra.instance().clear()
     try:
         with initialize_config_dir(config_dir=str(conf_dir()), version_base=None):
             cfg = compose(config_name=config_name, overrides=list(overrides))
@@ -24,3 +27,14 @@ def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -
     except (HydraException, OmegaConfBaseException) as e:
         raise SigmarlError(f"bad config override: {e}") from e
     return cfg
+
+
+def map_config(name: str) -> DictConfig:
+    """conf/map/<name>.yaml on the MapConfig schema, without Hydra's global state, so that
+    code running inside a Hydra job (a sweep's evaluation) can read it."""
+    path = conf_dir() / "map" / f"{name}.yaml"
+    if not path.is_file():
+        raise SigmarlError(f"no map config {path}")
+    values = OmegaConf.load(path)
+    values.pop("defaults", None)
+    return OmegaConf.merge(OmegaConf.structured(MapConfig), values)

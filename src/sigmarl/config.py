@@ -98,6 +98,17 @@ class PPOConfig:
 
 
 @dataclass
+class EvalConfig:
+    """Evaluation protocol (study.md section 3): the same seed for every model."""
+
+    scenarios: list[str] = field(default_factory=lambda: ["CPM", "Intersection", "On-Ramp", "Roundabout"])
+    n_sims: int = 32
+    steps: int = 1200
+    seed: int = 2024
+    checkpoint: str = "best"  # best (the paper's choice) | final
+
+
+@dataclass
 class TrackingConfig:
     tracking_uri: str = ""  # empty: MLflow's default (a local SQLite mlflow.db)
     experiment: str = "sigmarl-ablation"
@@ -112,6 +123,7 @@ class Config:
     network: NetworkConfig = field(default_factory=NetworkConfig)
     ppo: PPOConfig = field(default_factory=PPOConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    eval: EvalConfig = field(default_factory=EvalConfig)
     seed: int = 0
     device: str = "cpu"
     threads: int = 1

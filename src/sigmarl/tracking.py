@@ -160,14 +160,15 @@ class Tracker:
         tracker.log_params(flatten(OmegaConf.to_container(cfg, resolve=True)))
         return tracker
 
-    def _guard(self, what: str, fn: Any, *args: Any, **kwargs: Any) -> None:
+    def _guard(self, method: str, *args: Any, **kwargs: Any) -> None:
+        """Call client.<method>(run_id, ...) if tracking; a failing store only warns."""
         if not self.enabled:
             return
         try:
-            fn(*args, **kwargs)
+            getattr(self.client, method)(self.run_id, *args, **kwargs)
         except Exception as e:  # keep training; the checkpoints are the primary record
             if not self._warned:
-                print(f"sigmarl: warning: MLflow {what} failed ({e}); training goes on", file=sys.stderr)
+                print(f"sigmarl: warning: MLflow {method} failed ({e}); training goes on", file=sys.stderr)
                 self._warned = True
 
     def log_params(self, params: Mapping[str, str]) -> None:
@@ -175,7 +176,7 @@ class Tracker:
 
         items = [Param(k, v[:6000]) for k, v in params.items()]
         for i in range(0, len(items), 100):  # MLflow takes at most 100 params per batch
-            self._guard("log_params", self.client.log_batch, self.run_id, params=items[i : i + 100])
+            self._guard("log_batch", params=items[i : i + 100])
 
     def log_metrics(self, rows: list[tuple[int, Mapping[str, float]]]) -> None:
         """Metrics of several iterations: [(step, {name: value}), ...]."""
@@ -188,11 +189,11 @@ class Tracker:
         now = int(time.time() * 1000)
         items = [Metric(k, float(v), now, step) for step, row in rows for k, v in row.items()]
         for i in range(0, len(items), 1000):  # MLflow's batch limit
-            self._guard("log_metrics", self.client.log_batch, self.run_id, metrics=items[i : i + 1000])
+            self._guard("log_batch", metrics=items[i : i + 1000])
 
     def log_artifact(self, path: Path) -> None:
-        self._guard("log_artifact", self.client.log_artifact, self.run_id, str(path))
+        self._guard("log_artifact", str(path))
 
     def finish(self, status: str = "FINISHED") -> None:
         """FINISHED, KILLED (interrupted; resumable) or FAILED."""
-        self._guard("set_terminated", self.client.set_terminated, self.run_id, status)
+        self._guard("set_terminated", status)

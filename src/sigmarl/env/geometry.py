@@ -60,7 +60,7 @@ def _segment_mask(n_segments: int, n_valid: Tensor | None, device: torch.device)
         return None
     n_valid = torch.as_tensor(n_valid, device=device)
     idx = torch.arange(n_segments, device=device)
-    return idx < n_valid.unsqueeze(-1)
+    return idx < (n_valid.unsqueeze(-1) - 1)
 
 
 def point_polyline_distance(

@@ -16,8 +16,8 @@ import torch
 from vmas.simulator.core import Agent, Box, World
 from vmas.simulator.scenario import BaseScenario
 
-from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.collision import pairwise_box_overlap, polyline_box_overlap
+from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import point_polyline_distance, rect_corners
 from sigmarl.env.observation import ObsFlags, ObsInputs, build_observation
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward

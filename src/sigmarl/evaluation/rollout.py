@@ -15,7 +15,7 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from tqdm.auto import tqdm
 
-from sigmarl.compose import compose_config
+from sigmarl.compose import map_config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
 from sigmarl.study import SCENARIOS
@@ -39,12 +39,11 @@ def as_td_policy(policy) -> Policy:
     return run
 
 
-def scenario_map_config(scenario: str, overrides: list[str] | tuple[str, ...] = ()):
-    """The map config of a study scenario (conf/map/<name>.yaml), with user overrides."""
+def scenario_map_config(scenario: str):
+    """The map config of a study scenario (conf/map/<name>.yaml)."""
     if scenario not in SCENARIOS:
         raise SigmarlError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    map_name, _ = SCENARIOS[scenario]
-    return compose_config([f"map={map_name}", *overrides]).map
+    return map_config(SCENARIOS[scenario][0])
 
 
 @torch.no_grad()

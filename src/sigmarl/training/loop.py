@@ -113,6 +113,34 @@ def _env_dims(env: Any) -> dict[str, Any]:
     }
 
 
+@dataclass
+class Parts:
+    """Everything one training run is made of (also used by the benchmark)."""
+
+    env: Any
+    actor: Any
+    critic: Any
+    loss: Any
+    gae: Any
+    optimiser: torch.optim.Optimizer
+    dims: dict[str, Any]
+
+
+def build(cfg: DictConfig, device: torch.device) -> Parts:
+    """Training environment, networks (initialised from cfg.seed), loss, GAE and optimiser."""
+    from sigmarl.env import make_env
+
+    env = make_env(cfg, num_envs=cfg.ppo.num_envs, mode="train", seed=cfg.seed, device=str(device))
+    dims = _env_dims(env)
+    torch.manual_seed(cfg.seed)  # network initialisation
+    actor = make_actor(cfg.network, dims["obs_dim"], dims["n_agents"], dims["action_low"],
+                       dims["action_high"], device)
+    critic = make_critic(cfg.network, dims["obs_dim"], dims["n_agents"], device)
+    optimiser = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=cfg.ppo.lr)
+    return Parts(env, actor, critic, make_loss(actor, critic, cfg.ppo), make_gae(critic, cfg.ppo),
+                 optimiser, dims)
+
+
 def train(cfg: DictConfig) -> TrainResult:
     steps = _check(cfg)
     torch.set_num_threads(cfg.threads)
@@ -126,16 +154,10 @@ def train(cfg: DictConfig) -> TrainResult:
         print(f"{run_dir}: training already finished ({start} iterations)")
         return TrainResult(run_dir, start, True, best, run_id)
 
-    from sigmarl.env import make_env
-
-    env = make_env(cfg, num_envs=cfg.ppo.num_envs, mode="train", seed=cfg.seed, device=str(device))
-    dims = _env_dims(env)
-    torch.manual_seed(cfg.seed)  # network initialisation
-    actor = make_actor(cfg.network, dims["obs_dim"], dims["n_agents"], dims["action_low"],
-                       dims["action_high"], device)
-    critic = make_critic(cfg.network, dims["obs_dim"], dims["n_agents"], device)
-    loss, gae = make_loss(actor, critic, cfg.ppo), make_gae(critic, cfg.ppo)
-    optimiser = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=cfg.ppo.lr)
+    parts = build(cfg, device)
+    env, actor, critic, loss, gae, optimiser, dims = (
+        parts.env, parts.actor, parts.critic, parts.loss, parts.gae, parts.optimiser, parts.dims
+    )
     if state:
         actor.load_state_dict(state["policy"])
         critic.load_state_dict(state["critic"])
@@ -211,8 +233,8 @@ def train(cfg: DictConfig) -> TrainResult:
                 ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.RESUME_FILE)
             if done_its == ppo.iterations:
                 ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.FINAL_FILE)
+            bar.set_postfix(fps=f"{metrics['frames_per_s']:.0f}", reward=f"{reward:.3f}", refresh=False)
             bar.update(1)
-            bar.set_postfix(fps=f"{metrics['frames_per_s']:.0f}", reward=f"{reward:.3f}")
     except KeyboardInterrupt:
         tracker.finish("KILLED")
         raise

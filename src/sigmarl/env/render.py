@@ -1,0 +1,279 @@
+"""Headless pictures of the traffic scenario: one state as a figure, a rollout as GIF/MP4.
+
+Figures use matplotlib's object API on the Agg canvas (never pyplot), so rendering works
+without a display and leaves the global backend alone. A rollout reuses one figure: the
+map is drawn once and only the vehicle patches, reference points and title change.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib as mpl
+import numpy as np
+import torch
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
+from matplotlib.patches import Polygon
+from tensordict import TensorDictBase
+from torchrl.envs import EnvBase
+from torchrl.envs.utils import step_mdp
+
+from sigmarl.env.geometry import rect_corners
+from sigmarl.env.route_bank import RouteBank
+from sigmarl.env.scenario import LENGTH, WIDTH, TrafficScenario
+from sigmarl.errors import SigmarlError
+from sigmarl.maps.model import RoadMap
+from sigmarl.maps.plot import plot_map
+
+Policy = Callable[[TensorDictBase], TensorDictBase]
+COLLISION = (1.0, 0.0, 0.0)  # pure red: no agent colour comes close (see _agent_colors)
+FIGSIZE = (6.0, 5.4)
+DPI = 100
+
+
+def _agent_colors(n: int) -> list[tuple[float, float, float, float]]:
+    """Qualitative colours without the palettes' reds, so that red always means a collision."""
+    if n <= 9:
+        cmap, keep = mpl.colormaps["tab10"], [i for i in range(10) if i != 3]
+    else:
+        cmap, keep = mpl.colormaps["tab20"], [i for i in range(20) if i not in (6, 7)]
+    return [cmap(keep[i % len(keep)]) for i in range(n)]
+
+
+@dataclass
+class Snapshot:
+    """What a frame shows of one environment, as numpy arrays."""
+
+    pos: np.ndarray  # [A, 2]
+    corners: np.ndarray  # [A, 4, 2]
+    ref_points: np.ndarray  # [A, P, 2]
+    collided: np.ndarray  # [A] bool: agent-agent or agent-lane
+    n_agent_collisions: int
+    n_lane_collisions: int
+    step: int | None
+
+
+def _unwrap(obj) -> tuple[TrafficScenario, object | None, RoadMap | None]:
+    """(scenario, the VMAS Environment or None, the RoadMap the env was built with or None)."""
+    if isinstance(obj, TrafficScenario):
+        return obj, None, None
+    base = getattr(obj, "base_env", obj)  # TransformedEnv -> VmasEnv
+    vmas_env = getattr(base, "_env", base)  # VmasEnv -> vmas Environment
+    scenario = getattr(vmas_env, "scenario", None)
+    if not isinstance(scenario, TrafficScenario):
+        raise SigmarlError(f"cannot render {type(obj).__name__}: expected a TrafficScenario env")
+    road_map = getattr(base, "_constructor_kwargs", {}).get("road_map")
+    return scenario, vmas_env, road_map
+
+
+def snapshot(scenario: TrafficScenario, env_index: int = 0, step: int | None = None) -> Snapshot:
+    """The state of environment `env_index` as the scenario holds it now."""
+    s = scenario
+    pos, heading = s.pos[env_index].detach().cpu(), s.heading[env_index].detach().cpu()
+    ref = getattr(s, "ref_points", None)
+    ref = ref[env_index].detach().cpu() if ref is not None else pos.unsqueeze(-2)
+    agent_hit = s.agent_collision[env_index].cpu()
+    lane_hit = s.lane_collision[env_index].cpu()
+    # In test mode colliders respawn within the step, so their flag no longer matches their
+    # (new) pose: count them in the title but do not highlight the respawned rectangle.
+    shown = (agent_hit | lane_hit) & ~s.respawned[env_index].cpu()
+    return Snapshot(
+        pos=pos.numpy(),
+        corners=rect_corners(pos, heading, LENGTH, WIDTH).numpy(),
+        ref_points=ref.numpy(),
+        collided=shown.numpy(),
+        n_agent_collisions=int(agent_hit.sum()),
+        n_lane_collisions=int(lane_hit.sum()),
+        step=step,
+    )
+
+
+def _draw_bank(bank: RouteBank, ax: Axes) -> None:
+    """Fallback map when no RoadMap is at hand: every route's corridor boundaries."""
+    lines = []
+    for table, counts in ((bank.left, bank.n_left), (bank.right, bank.n_right)):
+        for r in range(bank.n_routes):
+            lines.append(table[r, : int(counts[r])].cpu().numpy())
+    ax.add_collection(LineCollection(lines, colors="#555555", linewidths=0.6, zorder=1))
+    pts = np.concatenate(lines)
+    lo, hi = pts.min(0) - 0.1, pts.max(0) + 0.1
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+
+
+class Scene:
+    """One figure with the map drawn once and per-agent artists updated frame by frame."""
+
+    def __init__(
+        self,
+        scenario: TrafficScenario,
+        road_map: RoadMap | None = None,
+        ax: Axes | None = None,
+        show_ref_points: bool = True,
+        figsize: tuple[float, float] = FIGSIZE,
+        dpi: int = DPI,
+    ):
+        if ax is None:
+            fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
+            ax = fig.add_subplot()
+        self.ax, self.fig = ax, ax.figure
+        if self.fig.canvas is None or not isinstance(self.fig.canvas, FigureCanvasAgg):
+            FigureCanvasAgg(self.fig)
+        if road_map is not None:
+            plot_map(road_map, ax, routes=False)
+            self.name = road_map.name
+        else:
+            _draw_bank(scenario.bank, ax)
+            self.name = "map"
+        n = scenario.n_agents
+        self.colors = _agent_colors(n)
+        self.vehicles = [
+            ax.add_patch(Polygon(np.zeros((4, 2)), closed=True, fc=c, ec="black", lw=0.6, zorder=5))
+            for c in self.colors
+        ]
+        self.show_ref_points = show_ref_points
+        n_ref = scenario.n_ref
+        self.ref_dots = ax.scatter(
+            np.zeros(n * n_ref), np.zeros(n * n_ref), s=6, zorder=4,
+            c=np.repeat(np.array(self.colors), n_ref, axis=0), visible=show_ref_points,
+        )
+
+    def update(self, snap: Snapshot) -> None:
+        for patch, corners, hit in zip(self.vehicles, snap.corners, snap.collided, strict=True):
+            patch.set_xy(corners)
+            patch.set_edgecolor(COLLISION if hit else "black")
+            patch.set_linewidth(1.8 if hit else 0.6)
+            patch.set_hatch("////" if hit else None)
+        if self.show_ref_points:
+            self.ref_dots.set_offsets(snap.ref_points.reshape(-1, 2))
+        step = "" if snap.step is None else f" · step {snap.step}"
+        self.ax.set_title(
+            f"{self.name}{step} · collisions: {snap.n_agent_collisions} agent, "
+            f"{snap.n_lane_collisions} lane",
+            fontsize=9,
+        )
+
+    def _dynamic(self) -> list:
+        return [*self.vehicles, self.ref_dots, self.ax.title]
+
+    def _cache_background(self) -> None:
+        """Draw everything once (fixing the layout), then keep a picture of the static part."""
+        canvas = self.fig.canvas
+        canvas.draw()
+        self.fig.set_layout_engine("none")  # the layout would otherwise be redone every frame
+        visible = [a.get_visible() for a in self._dynamic()]
+        for a in self._dynamic():
+            a.set_visible(False)
+        canvas.draw()
+        self.background = canvas.copy_from_bbox(self.fig.bbox)
+        for a, v in zip(self._dynamic(), visible, strict=True):
+            a.set_visible(v)
+
+    def frame(self) -> np.ndarray:
+        """The figure as an RGB array [H, W, 3]; blits the changing artists onto the cached map."""
+        canvas = self.fig.canvas
+        if getattr(self, "background", None) is None:
+            self._cache_background()
+        canvas.restore_region(self.background)
+        for a in self._dynamic():
+            self.fig.draw_artist(a)
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+
+def _step_count(vmas_env, env_index: int) -> int | None:
+    steps = getattr(vmas_env, "steps", None)  # VMAS counts steps since each env's reset
+    return None if steps is None else int(steps[env_index])
+
+
+def render_state(
+    env_or_scenario,
+    env_index: int = 0,
+    ax: Axes | None = None,
+    road_map: RoadMap | None = None,
+    show_ref_points: bool = True,
+    figsize: tuple[float, float] = FIGSIZE,
+    dpi: int = DPI,
+) -> Figure:
+    """Draw one environment's current state: map, vehicles, reference points, collisions.
+
+    `env_or_scenario` is the env `make_env` returns (or its VmasEnv) or the TrafficScenario
+    itself; the map comes from `road_map`, else from the env's constructor arguments, else
+    (a bare scenario) the route corridors of its RouteBank.
+    """
+    scenario, vmas_env, env_map = _unwrap(env_or_scenario)
+    scene = Scene(scenario, road_map or env_map, ax, show_ref_points, figsize, dpi)
+    scene.update(snapshot(scenario, env_index, _step_count(vmas_env, env_index)))
+    return scene.fig
+
+
+def _writer_for(path: Path) -> Callable[[Path, list[np.ndarray], int], None]:
+    """A function writing frames to `path`, chosen by suffix; fails before any stepping."""
+    suffix = path.suffix.lower()
+    if suffix == ".gif":
+        return _write_gif
+    if suffix == ".mp4":
+        if importlib.util.find_spec("imageio_ffmpeg") or importlib.util.find_spec("av"):
+            return _write_mp4
+        raise SigmarlError(
+            f"cannot write {path}: MP4 needs an ffmpeg writer (pip install imageio-ffmpeg, or av); "
+            "use a .gif path instead"
+        )
+    raise SigmarlError(f"cannot write {path}: use a .gif or .mp4 path")
+
+
+def _write_gif(path: Path, frames: list[np.ndarray], fps: int) -> None:
+    import imageio.v3 as iio
+
+    iio.imwrite(path, np.stack(frames), extension=".gif", duration=1000 / fps, loop=0)
+
+
+def _write_mp4(path: Path, frames: list[np.ndarray], fps: int) -> None:
+    import imageio.v2 as imageio
+
+    # yuv420p needs even sizes; macro_block_size=2 pads at most one pixel instead of 16.
+    with imageio.get_writer(path, fps=fps, macro_block_size=2) as writer:
+        for f in frames:
+            writer.append_data(f)
+
+
+def render_rollout(
+    env: EnvBase,
+    policy: Policy | None = None,
+    steps: int = 100,
+    path: str | Path = "rollout.gif",
+    env_index: int = 0,
+    fps: int = 20,
+    road_map: RoadMap | None = None,
+    show_ref_points: bool = True,
+) -> Path:
+    """Run `env` for `steps` steps and write one frame per step (the state after it).
+
+    `policy` maps a TensorDict to one with ("agents", "action"); None draws random actions.
+    Done environments are reset as `step_and_maybe_reset` would, but each frame is drawn
+    before that reset, so the step that ends an episode (a collision) is visible.
+    """
+    path = Path(path)
+    write = _writer_for(path)
+    scenario, vmas_env, env_map = _unwrap(env)
+    scene = Scene(scenario, road_map or env_map, show_ref_points=show_ref_points)
+    frames = []
+    td = env.reset()
+    with torch.no_grad():
+        for _ in range(steps):
+            td = policy(td) if policy is not None else env.rand_action(td)
+            td = env.step(td)
+            scene.update(snapshot(scenario, env_index, _step_count(vmas_env, env_index)))
+            frames.append(scene.frame())
+            td = env.maybe_reset(
+                step_mdp(td, reward_keys=env.reward_keys, done_keys=env.done_keys, action_keys=env.action_keys)
+            )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write(path, frames, fps)
+    return path
