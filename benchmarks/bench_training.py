@@ -8,7 +8,8 @@ the compute any implementation must pay. Target: full iteration <= 1.15 x floor.
 To keep the run short, optimisation (torchrl and floor) runs `--epochs` epochs and is scaled
 to the configured 60; collection and GAE run in full. Usage:
 
-    python benchmarks/bench_training.py [--epochs 6] [--threads 1 2] [--collector] [overrides...]
+    python benchmarks/bench_training.py [--epochs 6] [--repeats 1] [--threads 1 2] [--compare-rollout]
+        [overrides...]
 """
 
 from __future__ import annotations
@@ -20,11 +21,14 @@ import time
 
 import torch
 import torch.nn.functional as F
+from tensordict.nn import TensorDictModule
 from torch import nn
+from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.compose import compose_config
 from sigmarl.training.loop import build, learning_rate
 from sigmarl.training.mappo import collect, update
+from sigmarl.training.networks import ACTION, OBS
 
 
 def _mlp(n_in: int, hidden: list[int], n_out: int) -> nn.Sequential:
@@ -37,33 +41,38 @@ def _mlp(n_in: int, hidden: list[int], n_out: int) -> nn.Sequential:
 
 def floor_seconds(
     obs: torch.Tensor, high: torch.Tensor, hidden: list[int], ppo, steps: int
-) -> float:
-    """`steps` optimiser steps of a hand-written MAPPO update on frames obs [F, A, D]."""
+) -> tuple[float, float]:
+    """(wall, cpu) seconds of `steps` optimiser steps of a hand-written MAPPO update.
+
+    As lean as the maths allows: everything that does not depend on the parameters (the
+    pre-tanh actions and their log-Jacobian) is computed once, outside the loop.
+    """
     n, n_agents, d = obs.shape
     actor, critic = _mlp(d, hidden, 4), _mlp(n_agents * d, hidden, 1)
     params = [*actor.parameters(), *critic.parameters()]
     opt = torch.optim.Adam(params, lr=ppo.lr)
-    act = (torch.rand(n, n_agents, 2) * 2 - 1) * high * 0.99
-    old_lp, adv, target = torch.randn(n, n_agents), torch.randn(n, n_agents, 1), torch.randn(n, n_agents, 1)
+    u_act = torch.randn(n, n_agents, 2)  # pre-tanh actions; tanh(u) * high is the action
+    log_jac = _log_jac(u_act, high).sum(-1)
+    old_lp, adv = torch.randn(n, n_agents), torch.randn(n, n_agents, 1)
+    target = torch.randn(n, 1)  # one centralised value per frame, shared by the agents
     shift = math.log(math.e - 1)  # softplus(0 + shift) = 1
+    half_log_2pi = 0.5 * math.log(2 * math.pi)
+    eps = ppo.clip_epsilon
 
-    def log_prob(loc, scale, a):
-        u = torch.atanh((a / high).clamp(-0.999999, 0.999999))
-        jac = torch.log(high * (1 - torch.tanh(u) ** 2) + 1e-6)
-        return (torch.distributions.Normal(loc, scale).log_prob(u) - jac).sum(-1)
-
-    def step(idx):
+    def step(idx: torch.Tensor) -> None:
         o = obs[idx]
         loc, s = actor(o).chunk(2, -1)
         scale = F.softplus(s + shift).clamp_min(1e-4)
-        lw = (log_prob(loc, scale, act[idx]) - old_lp[idx]).unsqueeze(-1)
+        z = (u_act[idx] - loc) / scale
+        lp = (-0.5 * z**2 - scale.log() - half_log_2pi).sum(-1) - log_jac[idx]
+        lw = (lp - old_lp[idx]).unsqueeze(-1)
         a = adv[idx]
-        eps = ppo.clip_epsilon
         gain = torch.min(lw.exp() * a, lw.clamp(math.log1p(-eps), math.log1p(eps)).exp() * a)
-        sample = torch.tanh(loc + scale * torch.randn_like(loc)) * high
-        entropy = -log_prob(loc, scale, sample).mean()
-        value = critic(o.flatten(-2)).unsqueeze(-2).expand(-1, n_agents, 1)
-        loss = -gain.mean() + F.smooth_l1_loss(value, target[idx]) - ppo.entropy_coef * entropy
+        noise = torch.randn_like(loc)  # one-sample entropy estimate of the tanh-Gaussian
+        u = loc + scale * noise
+        entropy = -((-0.5 * noise**2 - scale.log() - half_log_2pi) - _log_jac(u, high)).sum(-1)
+        value = critic(o.flatten(-2))
+        loss = -gain.mean() + F.smooth_l1_loss(value, target[idx]) - ppo.entropy_coef * entropy.mean()
         opt.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(params, ppo.max_grad_norm)
@@ -71,60 +80,81 @@ def floor_seconds(
 
     for _ in range(3):  # warm-up
         step(torch.randint(0, n, (ppo.minibatch_size,)))
-    t = time.perf_counter()
     per_epoch = n // ppo.minibatch_size
+    w, c = time.perf_counter(), time.process_time()
     for i in range(steps):
         if i % per_epoch == 0:
             order = torch.randperm(n)
         j = i % per_epoch
         step(order[j * ppo.minibatch_size : (j + 1) * ppo.minibatch_size])
-    return time.perf_counter() - t
+    return time.perf_counter() - w, time.process_time() - c
 
 
-def measure(cfg, epochs: int, repeats: int, use_collector: bool) -> dict[str, float]:
+def _log_jac(u: torch.Tensor, high: torch.Tensor) -> torch.Tensor:
+    """log |d(high * tanh u)/du|, stable: log(1 - tanh^2 u) = 2 (log 2 - u - softplus(-2u))."""
+    return high.log() + 2 * (math.log(2) - u - F.softplus(-2 * u))
+
+
+class _Clock:
+    """Wall and CPU time of a block; CPU time is robust when other processes share the cores."""
+
+    def __enter__(self) -> _Clock:
+        self.w, self.c = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.wall, self.cpu = time.perf_counter() - self.w, time.process_time() - self.c
+
+
+def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, tuple[float, float]]:
+    """Median (wall, cpu) seconds per iteration of each phase, optimisation scaled to ppo.epochs."""
     ppo = cfg.ppo
     parts = build(cfg, torch.device("cpu"))
+    env, actor = parts.env, parts.actor
     steps = ppo.frames_per_iteration // ppo.num_envs
     short = cfg.ppo.copy()
     short.epochs = epochs
     scale = ppo.epochs / epochs
+    opt_steps = epochs * (ppo.frames_per_iteration // ppo.minibatch_size)
     for g in parts.optimiser.param_groups:
         g["lr"] = learning_rate(ppo, 0)
-    collect(parts.env, parts.actor, 8)  # warm-up
-    rows: dict[str, list[float]] = {"collect": [], "advantage": [], "optimise": [], "floor": []}
-    for r in range(repeats):
-        parts.env.set_seed(r)
-        t0 = time.perf_counter()
-        data = collect(parts.env, parts.actor, steps)
-        t1 = time.perf_counter()
-        with torch.no_grad():
-            parts.gae(data)
-        t2 = time.perf_counter()
-        update(data, parts.loss, parts.optimiser, short)
-        t3 = time.perf_counter()
-        obs = data["agents", "observation"].reshape(-1, *data["agents", "observation"].shape[-2:])
-        fl = floor_seconds(obs, parts.dims["action_high"], list(cfg.network.hidden), ppo,
-                           epochs * (ppo.frames_per_iteration // ppo.minibatch_size))
-        rows["collect"].append(t1 - t0)
-        rows["advantage"].append(t2 - t1)
-        rows["optimise"].append((t3 - t2) * scale)
-        rows["floor"].append(fl * scale)
-    out = {k: statistics.median(v) for k, v in rows.items()}
-    if use_collector:
-        from torchrl.collectors import Collector
-        from torchrl.envs.utils import ExplorationType
+    batches = iter(parts.collector)
+    collect(batches)  # warm-up
+    zero = TensorDictModule(lambda obs: torch.zeros(*obs.shape[:-1], 2), [OBS], [ACTION])
+    rows: dict[str, list[tuple[float, float]]] = {}
 
-        col = Collector(parts.env, parts.actor, frames_per_batch=ppo.frames_per_iteration,
-                        total_frames=-1, reset_at_each_iter=True,
-                        exploration_type=ExplorationType.RANDOM)
-        it = iter(col)
-        next(it)
-        t = time.perf_counter()
-        next(it)
-        out["collect_collector"] = time.perf_counter() - t
-        col.shutdown()
-    parts.env.close()
-    return out
+    def add(name: str, clock: _Clock, factor: float = 1.0) -> None:
+        rows.setdefault(name, []).append((clock.wall * factor, clock.cpu * factor))
+
+    for r in range(repeats):
+        env.set_seed(r)
+        with _Clock() as env_only, torch.no_grad():
+            env.rollout(steps, zero, auto_reset=True, break_when_any_done=False)
+        env.set_seed(r)
+        with _Clock() as col:
+            data = collect(batches)
+        with _Clock() as adv, torch.no_grad():
+            parts.gae(data)
+        with _Clock() as opt:
+            update(data, parts.loss, parts.optimiser, short)
+        obs = data["agents", "observation"].reshape(-1, *data["agents", "observation"].shape[-2:])
+        floor = _Clock()
+        floor.wall, floor.cpu = floor_seconds(
+            obs, parts.dims["action_high"], list(cfg.network.hidden), ppo, opt_steps
+        )
+        add("env_only", env_only)
+        add("collect", col)
+        add("advantage", adv)
+        add("optimise", opt, scale)
+        add("floor", floor, scale)
+    if compare_rollout:  # the alternative to the collector: EnvBase.rollout (stacks at the end)
+        for r in range(repeats):
+            env.set_seed(r)
+            with _Clock() as c, torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+                env.rollout(steps, actor, auto_reset=True, break_when_any_done=False)
+            add("collect_rollout", c)
+    parts.close()
+    return {k: tuple(statistics.median(x[i] for x in v) for i in (0, 1)) for k, v in rows.items()}
 
 
 def main() -> None:
@@ -132,31 +162,42 @@ def main() -> None:
     p.add_argument("--epochs", type=int, default=6, help="epochs actually run (scaled to ppo.epochs)")
     p.add_argument("--repeats", type=int, default=1, help="iterations measured (median)")
     p.add_argument("--threads", type=int, nargs="+", default=[1, 2])
-    p.add_argument("--collector", action="store_true", help="also time torchrl's Collector")
+    p.add_argument("--compare-rollout", action="store_true",
+                   help="also time collection with env.rollout instead of the Collector")
     p.add_argument("overrides", nargs="*", default=[], help="Hydra overrides (default: paper)")
     args = p.parse_args()
     cfg = compose_config(["tracking.enabled=false", *args.overrides])
     ppo = cfg.ppo
     print(
-        f"paper settings: {ppo.num_envs} envs x {ppo.frames_per_iteration // ppo.num_envs} steps, "
+        f"settings: {ppo.num_envs} envs x {ppo.frames_per_iteration // ppo.num_envs} steps, "
         f"{ppo.epochs} epochs x {ppo.frames_per_iteration // ppo.minibatch_size} minibatches of "
         f"{ppo.minibatch_size}; map {cfg.map.name}, {cfg.env.n_agents} agents, obs {cfg.obs.preset}"
     )
     print(f"optimisation measured over {args.epochs} epochs and scaled x{ppo.epochs / args.epochs:g}; "
           f"median of {args.repeats} iteration(s)\n")
+    projected = {}
     for threads in args.threads:
         torch.set_num_threads(threads)
-        m = measure(cfg, args.epochs, args.repeats, args.collector and threads == args.threads[0])
-        total = m["collect"] + m["advantage"] + m["optimise"]
-        print(f"threads={threads}  (seconds per iteration)")
-        print(f"  collection   {m['collect']:7.2f}")
-        if "collect_collector" in m:
-            print(f"  (collection with torchrl Collector instead of env.rollout: {m['collect_collector']:.2f})")
-        print(f"  advantage    {m['advantage']:7.2f}")
-        print(f"  optimisation {m['optimise']:7.2f}   (bare PyTorch floor {m['floor']:.2f}, "
-              f"x{m['optimise'] / m['floor']:.3f})")
-        print(f"  iteration    {total:7.2f}   = x{total / m['floor']:.3f} the floor (target <= 1.15)")
-        print(f"  projected {ppo.iterations} iterations: {total * ppo.iterations / 60:.1f} min\n")
+        m = measure(cfg, args.epochs, args.repeats, args.compare_rollout and threads == args.threads[0])
+        # one thread: CPU time is the process's own work, unaffected by other processes on the
+        # machine; more threads: only wall time says what they buy
+        k = 1 if threads == 1 else 0
+        clock = "CPU" if k else "wall"
+        total = m["collect"][k] + m["advantage"][k] + m["optimise"][k]
+        floor = m["floor"][k]
+        print(f"threads={threads}: seconds per iteration ({clock} time; wall in brackets)")
+        for name, label in [("collect", "collection"), ("advantage", "advantage (GAE)"),
+                            ("optimise", "optimisation"), ("floor", "bare PyTorch floor")]:
+            print(f"  {label:<20}{m[name][k]:7.2f}  [{m[name][0]:.2f}]")
+        print(f"    of the collection, env stepping with zero actions: {m['env_only'][k]:.2f}")
+        if "collect_rollout" in m:
+            print(f"    collection with env.rollout instead of the Collector: {m['collect_rollout'][k]:.2f}")
+        print(f"  optimisation / floor   x{m['optimise'][k] / floor:.3f}")
+        print(f"  iteration / floor      x{total / floor:.3f}   (target <= 1.15)")
+        projected[threads] = total * ppo.iterations
+        print(f"  projected {ppo.iterations} iterations: {projected[threads] / 60:.1f} min\n")
+    print("projected wall time for", ppo.iterations, "iterations:",
+          ", ".join(f"{t} thread(s) {s / 60:.1f} min" for t, s in projected.items()))
 
 
 if __name__ == "__main__":

@@ -36,6 +36,9 @@ def test_straight_driving_covers_v_dt_per_step(env_factory, wide_road):
         torch.testing.assert_close(drv.sc.pos, start + 0.04 * t * direction, atol=1e-5, rtol=0)
         torch.testing.assert_close(drv.sc.heading, heading, atol=1e-6, rtol=0)
         assert nxt["agents", "info", "speed"].flatten().tolist() == pytest.approx([0.8, 0.8], abs=1e-6)
+        # info distance to the center line y = 0: |y| = 0 and |-0.3 + 0.011821 t|
+        dc = nxt["agents", "info", "distance_to_center_line"].flatten().tolist()
+        assert dc == pytest.approx([0.0, abs(-0.3 + 0.04 * math.sin(0.3) * t)], abs=1e-5)
     assert not nxt["done"].any()
     mid = start + 0.4 * direction  # 10 steps x 0.04
     for t in range(1, 5):

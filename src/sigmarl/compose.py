@@ -10,7 +10,7 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from sigmarl.config import MapConfig, register_configs
+from sigmarl.config import Config, MapConfig, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.paths import conf_dir
 
@@ -26,7 +26,22 @@ def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -
         OmegaConf.resolve(cfg)
     except (HydraException, OmegaConfBaseException) as e:
         raise SigmarlError(f"bad config override: {e}") from e
+    # `+key=value` adds keys the schema does not know (Hydra's own error message even suggests
+    # it): a misspelt flag would be silently ignored.
+    unknown = _unknown_keys(cfg, OmegaConf.structured(Config))
+    if unknown:
+        raise SigmarlError(f"unknown config key(s): {', '.join(unknown)}")
     return cfg
+
+
+def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list[str]:
+    out = []
+    for key in cfg:
+        if key not in schema.keys():
+            out.append(prefix + str(key))
+        elif isinstance(cfg[key], DictConfig) and isinstance(schema[key], DictConfig):
+            out += _unknown_keys(cfg[key], schema[key], f"{prefix}{key}.")
+    return out
 
 
 def map_config(name: str) -> DictConfig:

@@ -95,6 +95,18 @@ def _artifact_location(uri: str) -> str | None:
     return (Path(db).resolve().parent / "mlartifacts").as_uri()
 
 
+def _has_run(client: Any, run_id: str) -> bool:
+    from mlflow.exceptions import MlflowException
+
+    try:
+        client.get_run(run_id)
+    except MlflowException as e:
+        if e.error_code == "RESOURCE_DOES_NOT_EXIST":
+            return False
+        raise
+    return True
+
+
 class Tracker:
     """An MLflow run; `Tracker.disabled()` gives one that records nothing."""
 
@@ -127,6 +139,11 @@ class Tracker:
         try:
             client = MlflowClient(tracking_uri=uri)
             if run_id is not None:
+                if not _has_run(client, run_id):
+                    raise SigmarlError(
+                        f"MLflow run {run_id} (the one to resume) is not in the store {uri!r}; "
+                        "resume with the tracking_uri it was started with"
+                    )
                 if client.get_run(run_id).info.lifecycle_stage != "active":
                     raise SigmarlError(f"MLflow run {run_id} was deleted; cannot resume into it")
                 client.update_run(run_id, status="RUNNING")

@@ -11,6 +11,15 @@ from sigmarl.errors import SigmarlError
 from sigmarl.maps import RoadMap, load_map
 
 
+class TrafficEnv(VmasEnv):
+    """torchrl's VmasEnv whose `set_seed` also reseeds our scenario's generators (VMAS
+    seeds only torch's global generator, which the scenario does not use)."""
+
+    def _set_seed(self, seed: int | None) -> None:
+        super()._set_seed(seed)
+        self._env.scenario.seed(0 if seed is None else seed)
+
+
 def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: int, flags: ObsFlags) -> None:
     """Reject impossible settings before any stepping."""
     if n_agents < 1:
@@ -52,7 +61,7 @@ def make_env(
     flags = ObsFlags.from_config(cfg.obs)
     validate(n_agents, mode, float(cfg.obs.noise), num_envs, max_steps, flags)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
-    base = VmasEnv(
+    base = TrafficEnv(
         scenario=TrafficScenario(),
         num_envs=num_envs,
         device=device,
@@ -62,6 +71,7 @@ def make_env(
         flags=flags,
         n_agents=n_agents,
         mode=mode,
+        scenario_seed=seed,  # VmasEnv keeps `seed` for itself
         noise=float(cfg.obs.noise),
         ref_point_stride=int(cfg.obs.ref_point_stride),
         spawn_start_m=float(env_cfg.spawn_start_m),

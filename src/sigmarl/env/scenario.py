@@ -55,13 +55,9 @@ class TrafficScenario(BaseScenario):
             end_fraction=float(kwargs.get("spawn_end_fraction", 0.5)),
             margin_m=float(kwargs.get("spawn_margin_m", 0.25)),
         )
-        # Separate streams: spawns must not depend on how much noise the observation
-        # design draws, so that every model faces the same initial states.
-        seed = int(kwargs.get("seed", 0))
         self.rng = torch.Generator(device=device)
-        self.rng.manual_seed(seed)
         self.noise_rng = torch.Generator(device=device)
-        self.noise_rng.manual_seed(seed + 7919)
+        self.seed(int(kwargs.get("scenario_seed", 0)))
 
         world = World(batch_dim, device, dt=DT, substeps=1, drag=0.0)
         for i in range(self.n_agents):
@@ -89,6 +85,12 @@ class TrafficScenario(BaseScenario):
         self._eye_big = torch.eye(self.n_agents, device=device) * 1e9
         self._alloc(batch_dim, device)
         return world
+
+    def seed(self, seed: int) -> None:
+        """Reseed the spawn and the noise generators (separate streams, so that spawns do not
+        depend on how much noise an observation design draws)."""
+        self.rng.manual_seed(seed)
+        self.noise_rng.manual_seed(seed + 7919)
 
     # ---- state -------------------------------------------------------------------------
     def _alloc(self, n_env: int, device) -> None:

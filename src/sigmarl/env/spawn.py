@@ -69,7 +69,7 @@ def sample_spawns(
         index = torch.where(ok, i, index)
         where = torch.where(ok.unsqueeze(-1), cand, where)
         pending = pending & ~ok
-    n_left = int(pending.sum())
+    n_left = int(pending.sum(-1).max())  # in the worst environment
     raise SigmarlError(
         f"could not place {n_left} agent(s) {MIN_GAP:.4f} m apart from all others after "
         f"{MAX_TRIES} tries: the map cannot hold {n_agents} agents at that spacing; use fewer agents"

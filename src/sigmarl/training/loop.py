@@ -21,13 +21,21 @@ from tqdm import tqdm
 from sigmarl.errors import SigmarlError
 from sigmarl.tracking import Tracker, flatten
 from sigmarl.training import checkpoint as ckpt
-from sigmarl.training.mappo import collect, make_gae, make_loss, rollout_stats, update
+from sigmarl.training.mappo import (
+    collect,
+    make_collector,
+    make_gae,
+    make_loss,
+    rollout_stats,
+    update,
+)
 from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic
 
 RUN_ID_FILE = "mlflow_run_id"
 CONFIG_FILE = "config.yaml"
-# config keys that may differ between an interrupted run and its resume
-RESUME_MAY_CHANGE = {"resume", "ppo.stop_after", "threads", "device", "tracking.enabled"}
+# what a resume must share with the interrupted run (anything else, e.g. threads, device,
+# evaluation settings, may change); ppo.stop_after is the interruption itself
+RESUME_MUST_MATCH = ("map.", "obs.", "env.", "network.", "ppo.", "seed")
 
 
 @dataclass
@@ -51,8 +59,8 @@ def learning_rate(ppo: DictConfig, iteration: int) -> float:
     return ppo.lr + (ppo.lr_final - ppo.lr) * frac
 
 
-def _check(cfg: DictConfig) -> int:
-    """Budget sanity; returns the rollout length per iteration."""
+def _check(cfg: DictConfig) -> None:
+    """Budget sanity, before anything is built."""
     ppo = cfg.ppo
     for key in ("iterations", "frames_per_iteration", "num_envs", "epochs", "minibatch_size"):
         if ppo[key] < 1:
@@ -69,7 +77,6 @@ def _check(cfg: DictConfig) -> int:
         )
     if cfg.threads < 1:
         raise SigmarlError(f"threads must be positive, got {cfg.threads}")
-    return ppo.frames_per_iteration // ppo.num_envs
 
 
 def _device(name: str) -> torch.device:
@@ -85,16 +92,18 @@ def _device(name: str) -> torch.device:
 def _resume_point(cfg: DictConfig, run_dir: Path, device: torch.device) -> dict[str, Any] | None:
     path = run_dir / ckpt.RESUME_FILE
     if not cfg.resume:
-        if path.exists():
+        found = [n for n in (ckpt.RESUME_FILE, ckpt.BEST_FILE, ckpt.FINAL_FILE)
+                 if (run_dir / n).exists()]
+        if found:
             raise SigmarlError(
-                f"{run_dir} already holds a training run ({ckpt.RESUME_FILE}); pass resume=true "
+                f"{run_dir} already holds a training run ({', '.join(found)}); pass resume=true "
                 "to continue it, or choose another run_dir=..."
             )
         return None
     state = ckpt.load(path, device)
     old, new = flatten(state["config"]), flatten(OmegaConf.to_container(cfg, resolve=True))
     changed = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
-    changed = [k for k in changed if k not in RESUME_MAY_CHANGE]
+    changed = [k for k in changed if k.startswith(RESUME_MUST_MATCH) and k != "ppo.stop_after"]
     if changed:
         diffs = ", ".join(f"{k}: {old.get(k)} -> {new.get(k)}" for k in changed[:5])
         raise SigmarlError(f"cannot resume {path} with a different config ({diffs})")
@@ -124,6 +133,12 @@ class Parts:
     gae: Any
     optimiser: torch.optim.Optimizer
     dims: dict[str, Any]
+    collector: Any
+
+    def close(self) -> None:
+        self.collector.shutdown()
+        if not self.env.is_closed:
+            self.env.close()
 
 
 def build(cfg: DictConfig, device: torch.device) -> Parts:
@@ -137,12 +152,13 @@ def build(cfg: DictConfig, device: torch.device) -> Parts:
                        dims["action_high"], device)
     critic = make_critic(cfg.network, dims["obs_dim"], dims["n_agents"], device)
     optimiser = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=cfg.ppo.lr)
+    collector = make_collector(env, actor, cfg.ppo.frames_per_iteration, device)
     return Parts(env, actor, critic, make_loss(actor, critic, cfg.ppo), make_gae(critic, cfg.ppo),
-                 optimiser, dims)
+                 optimiser, dims, collector)
 
 
 def train(cfg: DictConfig) -> TrainResult:
-    steps = _check(cfg)
+    _check(cfg)
     torch.set_num_threads(cfg.threads)
     device = _device(cfg.device)
     run_dir = Path(cfg.run_dir)
@@ -155,9 +171,7 @@ def train(cfg: DictConfig) -> TrainResult:
         return TrainResult(run_dir, start, True, best, run_id)
 
     parts = build(cfg, device)
-    env, actor, critic, loss, gae, optimiser, dims = (
-        parts.env, parts.actor, parts.critic, parts.loss, parts.gae, parts.optimiser, parts.dims
-    )
+    actor, critic, optimiser = parts.actor, parts.critic, parts.optimiser
     if state:
         actor.load_state_dict(state["policy"])
         critic.load_state_dict(state["critic"])
@@ -185,28 +199,29 @@ def train(cfg: DictConfig) -> TrainResult:
             "mean_episode_reward": reward,
             "mlflow_run_id": run_id,
             "config": OmegaConf.to_container(cfg, resolve=True),
-            "dims": dims,
+            "dims": parts.dims,
         }
 
     ppo = cfg.ppo
     stop = min(ppo.stop_after, ppo.iterations) if ppo.stop_after > 0 else ppo.iterations
     pending: list[tuple[int, dict[str, float]]] = []  # metrics not yet sent (see below)
     history: list[dict[str, float]] = []
+    batches = iter(parts.collector)
     bar = tqdm(total=ppo.iterations, initial=start, desc="train", unit="it", dynamic_ncols=True)
     try:
         for it in range(start, stop):
             t0 = time.perf_counter()
             s = iteration_seed(cfg.seed, it)
             torch.manual_seed(s)
-            env.set_seed(s)
+            parts.env.set_seed(s)
             for group in optimiser.param_groups:
                 group["lr"] = learning_rate(ppo, it)
-            data = collect(env, actor, steps)
+            data = collect(batches)
             t1 = time.perf_counter()
             with torch.no_grad():
-                gae(data)
+                parts.gae(data)
             t2 = time.perf_counter()
-            losses = update(data, loss, optimiser, ppo)
+            losses = update(data, parts.loss, optimiser, ppo)
             t3 = time.perf_counter()
             metrics = {
                 **rollout_stats(data),
@@ -243,7 +258,7 @@ def train(cfg: DictConfig) -> TrainResult:
         raise
     finally:
         bar.close()
-        env.close()
+        parts.close()
     finished = stop == ppo.iterations
     if finished:
         tracker.log_artifact(run_dir / ckpt.BEST_FILE)
