@@ -95,6 +95,18 @@ def _log_jac(u: torch.Tensor, high: torch.Tensor) -> torch.Tensor:
     return high.log() + 2 * (math.log(2) - u - F.softplus(-2 * u))
 
 
+class _Replay(TensorDictModule):
+    """Plays back recorded actions [envs, steps, agents, 2], one step per call."""
+
+    def __init__(self, actions: torch.Tensor) -> None:
+        super().__init__(self._next, in_keys=[OBS], out_keys=[ACTION])
+        self.actions, self.t = actions, 0
+
+    def _next(self, obs: torch.Tensor) -> torch.Tensor:
+        self.t += 1
+        return self.actions[:, self.t - 1]
+
+
 class _Clock:
     """Wall and CPU time of a block; CPU time is robust when other processes share the cores."""
 
@@ -120,7 +132,6 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
         g["lr"] = learning_rate(ppo, 0)
     batches = iter(parts.collector)
     collect(batches)  # warm-up
-    zero = TensorDictModule(lambda obs: torch.zeros(*obs.shape[:-1], 2), [OBS], [ACTION])
     rows: dict[str, list[tuple[float, float]]] = {}
 
     def add(name: str, clock: _Clock, factor: float = 1.0) -> None:
@@ -128,11 +139,14 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
 
     for r in range(repeats):
         env.set_seed(r)
-        with _Clock() as env_only, torch.no_grad():
-            env.rollout(steps, zero, auto_reset=True, break_when_any_done=False)
-        env.set_seed(r)
         with _Clock() as col:
             data = collect(batches)
+        # the environment's share: the same seed and the recorded actions replay the very same
+        # trajectories (same resets) through the env, without policy or collector
+        env.set_seed(r)
+        with _Clock() as env_only, torch.no_grad():
+            env.rollout(steps, _Replay(data["agents", "action"]), auto_reset=True,
+                        break_when_any_done=False)
         with _Clock() as adv, torch.no_grad():
             parts.gae(data)
         with _Clock() as opt:
@@ -189,7 +203,7 @@ def main() -> None:
         for name, label in [("collect", "collection"), ("advantage", "advantage (GAE)"),
                             ("optimise", "optimisation"), ("floor", "bare PyTorch floor")]:
             print(f"  {label:<20}{m[name][k]:7.2f}  [{m[name][0]:.2f}]")
-        print(f"    of the collection, env stepping with zero actions: {m['env_only'][k]:.2f}")
+        print(f"    of the collection, the environment (same steps replayed): {m['env_only'][k]:.2f}")
         if "collect_rollout" in m:
             print(f"    collection with env.rollout instead of the Collector: {m['collect_rollout'][k]:.2f}")
         print(f"  optimisation / floor   x{m['optimise'][k] / floor:.3f}")
