@@ -54,7 +54,7 @@ class Driver:
 
     def __init__(self, env):
         self.env = env
-        self.sc = env.base_env._env.scenario
+        self.sc = env.scenario
         self.n_envs = env.batch_size[0]
         self.n_agents = self.sc.n_agents
         self.td = env.reset()

@@ -179,7 +179,7 @@ def test_respawns_keep_the_minimum_gap_in_random_rollouts(kit):
     reset and after every step, every respawned agent is >= 0.2147 m from all others."""
     cfg = kit.cfg(("obs.noise=0", "map=cpm_intersection"))
     env = make_env(cfg, num_envs=6, n_agents=6, mode="test")
-    sc = env.base_env._env.scenario
+    sc = env.scenario
     td = env.reset()
     assert (min_gap_to_others(sc.pos) >= MIN_GAP - 1e-6).all()
     gen = torch.Generator().manual_seed(5)
@@ -268,7 +268,7 @@ def test_different_seed_gives_different_initial_states(kit):
     for seed in (0, 1):
         env = make_env(cfg, num_envs=3, seed=seed)
         env.reset()
-        pos.append(env.base_env._env.scenario.pos.clone())
+        pos.append(env.scenario.pos.clone())
     assert not torch.allclose(pos[0], pos[1])
 
 
@@ -285,5 +285,5 @@ def test_initial_states_do_not_depend_on_the_observation_design(kit):
             td = env.step(td)["next"]
             td["agents", "action"] = torch.zeros(3, 4, 2)
         env.reset()
-        pos.append(env.base_env._env.scenario.pos.clone())
+        pos.append(env.scenario.pos.clone())
     torch.testing.assert_close(pos[0], pos[1])

@@ -72,7 +72,7 @@ def test_all_models_face_the_same_initial_states(cfg):
     for c in (cfg, other):
         env = make_env(c, num_envs=4, n_agents=8, mode="test", map_cfg=m, seed=11)
         env.reset()
-        pos.append(env.base_env._env.scenario.pos.clone())
+        pos.append(env.scenario.pos.clone())
     assert torch.equal(pos[0], pos[1])
 
 

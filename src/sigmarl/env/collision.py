@@ -1,4 +1,4 @@
-"""Collision tests specialised to the environment: every vehicle is the same rectangle.
+"""Per-step kernels specialised to the environment: every vehicle is the same rectangle.
 
 The generic separating-axis kernels in `geometry` project every corner on every
 axis. Here the axes and projections follow in closed form from the poses, which
@@ -63,3 +63,19 @@ def polyline_box_overlap(
     reach = hl * d[..., 1].abs() + hw * d[..., 0].abs()
     across = side <= reach + _EPS * d.norm(dim=-1)
     return (in_x & in_y & across).any(-1)
+
+
+def nearest_on_polylines(points: torch.Tensor, lines: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Distance from points [..., P, 2] to polylines [..., L, W, 2] and the closest segment.
+
+    Returns dist and segment index, both [..., L, P]. The lean form of
+    `geometry.point_polyline_distance` for the step's hot path: no padding masks and no
+    projected points (the windows it receives are always full).
+    """
+    a = lines[..., :-1, :].unsqueeze(-3)  # [..., L, 1, S, 2]
+    d = (lines[..., 1:, :] - lines[..., :-1, :]).unsqueeze(-3)
+    ap = points.unsqueeze(-2).unsqueeze(-4) - a  # [..., L, P, S, 2]
+    t = ((ap * d).sum(-1) / (d * d).sum(-1).clamp_min(1e-12)).clamp(0.0, 1.0)
+    diff = ap - t.unsqueeze(-1) * d
+    dist2, seg = (diff * diff).sum(-1).min(-1)
+    return dist2.sqrt(), seg

@@ -16,9 +16,9 @@ import torch
 from vmas.simulator.core import Agent, Box, World
 from vmas.simulator.scenario import BaseScenario
 
-from sigmarl.env.collision import pairwise_box_overlap, polyline_box_overlap
+from sigmarl.env.collision import nearest_on_polylines, pairwise_box_overlap, polyline_box_overlap
 from sigmarl.env.dynamics import bicycle_step
-from sigmarl.env.geometry import point_polyline_distance, rect_corners
+from sigmarl.env.geometry import rect_corners
 from sigmarl.env.observation import ObsFlags, ObsInputs, build_observation
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
 from sigmarl.env.route_bank import CENTER, LEFT, RouteBank
@@ -117,6 +117,27 @@ class TrafficScenario(BaseScenario):
             self.pending_reset[env_index] = True
         self.obs = None
 
+    def reset_envs(self, mask: torch.Tensor) -> None:
+        """Mark several environments for a reset at once (batched counterpart of reset_world_at)."""
+        self.pending_reset |= mask
+        self.obs = None
+
+    def current_observation(self) -> torch.Tensor:
+        """[E, A, D] observation of the current state (carrying out pending resets first)."""
+        if self.obs is None:
+            self._refresh()
+        return self.obs
+
+    def infos(self) -> dict[str, torch.Tensor]:
+        """Per-agent infos of the last step, [E, A, 1] each."""
+        return {
+            "agent_collision": self.agent_collision.unsqueeze(-1).float(),
+            "lane_collision": self.lane_collision.unsqueeze(-1).float(),
+            "distance_to_center_line": self.step_d_center.unsqueeze(-1),
+            "speed": self.step_speed.unsqueeze(-1),
+            "respawned": self.respawned.unsqueeze(-1).float(),
+        }
+
     def _flush_resets(self) -> None:
         envs = self.pending_reset
         if not envs.any():
@@ -164,8 +185,8 @@ class TrafficScenario(BaseScenario):
         self.corners = rect_corners(self.pos, self.heading, LENGTH, WIDTH)  # [E, A, 4, 2]
         # One window on the center line and both dense corridor boundaries: [E, A, 3, W, 2].
         lines = b.windows("lines", self.route, self.index, self._line_offsets)
-        probe = torch.cat([self.pos.unsqueeze(-2), self.corners], dim=-2).unsqueeze(-3)  # [E, A, 1, 5, 2]
-        dist, seg, _, _ = point_polyline_distance(probe, lines)  # [E, A, 3, 5]
+        probe = torch.cat([self.pos.unsqueeze(-2), self.corners], dim=-2)  # [E, A, 5, 2]
+        dist, seg = nearest_on_polylines(probe, lines)  # [E, A, 3, 5]
         self.d_center = dist[..., CENTER, 0]
         # DB: min(center distance - half width, corner distances), per side.
         sides = dist[..., LEFT:, :]

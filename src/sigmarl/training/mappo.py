@@ -40,6 +40,8 @@ def make_loss(actor: ProbabilisticActor, critic: TensorDictModule, ppo: DictConf
         loss_critic_type="smooth_l1",
         normalize_advantage=ppo.normalize_advantage,
         log_explained_variance=False,
+        # the loss uses the modules' own parameters: no functional copies to swap in per call
+        functional=False,
     )
     loss.set_keys(
         reward=REWARD,
