@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import time
 
@@ -187,6 +188,10 @@ def main() -> None:
         f"{ppo.epochs} epochs x {ppo.frames_per_iteration // ppo.minibatch_size} minibatches of "
         f"{ppo.minibatch_size}; map {cfg.map.name}, {cfg.env.n_agents} agents, obs {cfg.obs.preset}"
     )
+    load = os.getloadavg()[0]
+    print(f"machine: {os.cpu_count()} cores, load average {load:.2f} at start"
+          + ("  (busy: other processes share the cores; wall times of >1 thread are unreliable)"
+             if load > 0.5 else ""))
     print(f"optimisation measured over {args.epochs} epochs and scaled x{ppo.epochs / args.epochs:g}; "
           f"median of {args.repeats} iteration(s)\n")
     projected = {}

@@ -100,7 +100,7 @@ def cmd_report(args: argparse.Namespace) -> None:
     models = args.models.split(",") if args.models else None
     report = make_report(cfg, out_dir=Path(args.out) if args.out else None, latex=args.latex,
                          trim=args.trim, compare_paper=args.compare_paper, models=models,
-                         ci=args.ci, figures=not args.no_figures)
+                         ci=args.ci, figures=not args.no_figures, animation_steps=args.animations)
     print(report.markdown)  # the table's notes are part of it
     print("wrote " + ", ".join(str(p) for p in report.paths.values()))
 
@@ -142,6 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--models", help="comma-separated models to compare (default: all evaluated)")
     rp.add_argument("--out", help="output folder (default: reports/<experiment>)")
     rp.add_argument("--no-figures", action="store_true", help="tables only")
+    rp.add_argument("--animations", type=int, nargs="?", const=200, default=0, metavar="STEPS",
+                    help="also one GIF per scenario of M0 driving (default 200 steps)")
     rp.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. study=quick or tracking.experiment=NAME")
     rp.set_defaults(func=cmd_report)
     return p

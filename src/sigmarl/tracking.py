@@ -156,6 +156,7 @@ class Tracker:
                 else client.create_experiment(name, artifact_location=_artifact_location(uri))
             )
             tags = {
+                "kind": "training",  # evaluation and report runs share the experiment
                 "model": model_name(cfg.obs),
                 "obs_preset": str(cfg.obs.preset),
                 "seed": str(cfg.seed),

@@ -20,8 +20,13 @@ def make_report(
     models: list[str] | None = None,
     ci: bool = False,
     figures: bool = True,
+    animation_steps: int = 0,
 ) -> Report:
-    """Build the report of experiment `cfg.tracking.experiment` and log it as a report run."""
+    """Build the report of experiment `cfg.tracking.experiment` and log it as a report run.
+
+    With figures, also the four scenario maps; with animation_steps > 0, one GIF per scenario
+    of M0 (its first seed's evaluated checkpoint) driving under the evaluation protocol.
+    """
     experiment = cfg.tracking.experiment
     client = records.client_for(cfg)
     rows = records.load_evaluation_rows(client, experiment)
@@ -30,6 +35,12 @@ def make_report(
     report = build_report(rows, models, out_dir=out_dir, trim=trim, compare_paper=compare_paper,
                           latex=latex, curves=curves if curves is not None and len(curves) else None,
                           ci=ci, figures=figures)
+    if figures:
+        from sigmarl.maps.plot import save_scenario_maps
+
+        report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png")
+    if animation_steps > 0:
+        report.paths.update(_animations(client, experiment, cfg, out_dir, animation_steps))
     _log_report(client, experiment, report, rows)
     return report
 
@@ -51,3 +62,33 @@ def _log_report(client, experiment: str, report: Report, rows: pd.DataFrame) -> 
     except BaseException:
         client.set_terminated(rid, "FAILED")
         raise
+
+
+def _animations(client, experiment: str, cfg: DictConfig, out_dir: Path, steps: int) -> dict[str, Path]:
+    """One GIF per scenario of M0's evaluated checkpoint (deterministic actions, eval seed)."""
+    from omegaconf import OmegaConf
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from sigmarl.env import make_env
+    from sigmarl.env.render import render_rollout
+    from sigmarl.errors import SigmarlError
+    from sigmarl.evaluation.rollout import scenario_map_config
+    from sigmarl.study import SCENARIOS
+    from sigmarl.training.loop import load_policy
+
+    exp_id = records.experiment_id(client, experiment)
+    runs = client.search_runs([exp_id], filter_string="tags.kind = 'evaluation' and tags.model = 'M0'",
+                              order_by=["tags.seed ASC"], max_results=1)
+    if not runs or not Path(runs[0].data.tags.get("checkpoint", "")).is_file():
+        raise SigmarlError("animations need M0's evaluated checkpoint on this machine; none found")
+    path = Path(runs[0].data.tags["checkpoint"])
+    out = {}
+    for scenario, (_, n_agents) in SCENARIOS.items():
+        actor, state = load_policy(path, n_agents=n_agents)
+        train_cfg = OmegaConf.create(state["config"])
+        env = make_env(train_cfg, num_envs=1, n_agents=n_agents, mode="test", max_steps=steps,
+                       map_cfg=scenario_map_config(scenario), seed=cfg.eval.seed)
+        with set_exploration_type(ExplorationType.DETERMINISTIC):
+            gif = render_rollout(env, actor, steps=steps, path=out_dir / "animations" / f"M0_{scenario}.gif")
+        out[f"animation_{scenario}"] = gif
+    return out

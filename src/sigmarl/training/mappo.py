@@ -74,8 +74,8 @@ def make_collector(
 ) -> Collector:
     """torchrl's collector, resetting every environment at the start of each batch.
 
-    Measured against `env.rollout` (benchmarks/bench_training.py --compare-rollout) it is the
-    faster of the two: it writes steps into preallocated buffers instead of stacking them.
+    Against `env.rollout` (benchmarks/bench_training.py --compare-rollout) it measured as fast
+    or up to ~15% faster: it writes steps into preallocated buffers instead of stacking them.
     """
     return Collector(
         env,
