@@ -132,12 +132,20 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
 
 
 def _prepare_store(overrides: Sequence[str]) -> None:
-    """Create the MLflow store and experiment once, here: parallel jobs creating a new
-    SQLite store at the same moment would race on its schema migration."""
+    """Validate the sweep's configs, then create the MLflow store and experiment once, here:
+    parallel jobs creating a new SQLite store at the same moment would race on its schema
+    migration."""
     from sigmarl.compose import compose_config
     from sigmarl.evaluation import records
 
-    cfg = compose_config(_fixed(overrides))
+    fixed = _fixed(overrides)
+    # Check every swept value here, so a typo ends with one message before any job starts.
+    for item in overrides:
+        key, _, values = item.partition("=")
+        if "," in values and not key.startswith("hydra"):
+            for value in values.split(","):
+                compose_config([*fixed, f"{key}={value}"])
+    cfg = compose_config(fixed)
     if cfg.tracking.enabled:
         records.experiment_id(records.client_for(cfg), cfg.tracking.experiment, create=True)
 

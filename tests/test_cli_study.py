@@ -1,0 +1,76 @@
+"""Study commands on bad input and their building blocks: one clear message, non-zero exit."""
+
+from __future__ import annotations
+
+import pytest
+
+from sigmarl.cli import main
+from sigmarl.compose import compose_config
+from sigmarl.errors import SigmarlError
+from sigmarl.sweep import FAILED_FILE, run_job, sweep_overrides
+
+
+def test_sweep_defaults_cover_the_six_models_with_one_job_per_core():
+    out = sweep_overrides([], cores=2)
+    assert "obs=full,no_ego_view,no_vertices,no_distance_to_agents,no_distance_to_boundaries,no_distance_to_center_line" in out
+    assert "seed=0" in out and "hydra/launcher=joblib" in out
+    assert "hydra.launcher.n_jobs=2" in out and "threads=1" in out
+
+
+def test_sweep_shorthands():
+    out = sweep_overrides(["models=[M0,M4]", "seeds=[0,1,2]"], cores=16)
+    assert "obs=full,no_distance_to_boundaries" in out and "seed=0,1,2" in out
+    # 6 jobs on 16 cores: all at once, 2 threads each
+    assert "hydra.launcher.n_jobs=6" in out and "threads=2" in out
+    # the user's own choices win
+    out = sweep_overrides(["hydra.launcher.n_jobs=1", "threads=4"], cores=2)
+    assert "hydra.launcher.n_jobs=1" in out and out.count("threads=4") == 1
+
+
+def test_sweep_unknown_model():
+    with pytest.raises(SigmarlError, match="unknown model"):
+        sweep_overrides(["models=[M9]"])
+
+
+def test_sweep_over_unknown_preset_exits_2(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    rc = main(["sweep", "obs=full,no_such_preset", "tracking.enabled=false"])
+    assert rc == 2
+    assert "no_such_preset" in capsys.readouterr().err
+
+
+def test_a_failing_job_is_recorded_and_does_not_raise(tmp_path):
+    # 400 agents cannot be placed on the intersection: training fails before its first step.
+    cfg = compose_config(["ppo=smoke", "env.n_agents=400", "tracking.enabled=false", f"run_dir={tmp_path}/job"])
+    assert run_job(cfg) == "failed"
+    assert "could not place" in (tmp_path / "job" / FAILED_FILE).read_text()
+
+
+def test_evaluate_missing_checkpoint_exits_2(capsys):
+    rc = main(["evaluate", "/no/such/best.pt", "tracking.enabled=false"])
+    assert rc == 2
+    assert "checkpoint not found: /no/such/best.pt" in capsys.readouterr().err
+
+
+def test_evaluate_checkpoint_whose_observation_does_not_fit(tmp_path, capsys):
+    # Trained with 4 agents and 3 observed neighbours: on the 6-agent intersection the
+    # observation would hold 4 neighbours, a different size than the policy takes.
+    run = tmp_path / "run"
+    assert main(["train", "ppo=smoke", "ppo.iterations=1", "obs.n_nearest=3", "tracking.enabled=false",
+                 f"run_dir={run}"]) == 0
+    rc = main(["evaluate", str(run / "final.pt"), "--scenario", "Intersection", "eval.n_sims=1",
+               "eval.steps=2", "tracking.enabled=false"])
+    assert rc == 2
+    assert "cannot act on Intersection's observations" in capsys.readouterr().err
+
+
+def test_report_without_runs_exits_2(tmp_path, capsys):
+    rc = main(["report", f"tracking.tracking_uri=sqlite:///{tmp_path}/mlflow.db", "tracking.experiment=empty"])
+    assert rc == 2
+    assert "no MLflow experiment named 'empty'" in capsys.readouterr().err
+
+
+def test_report_on_unreachable_store_exits_2(tmp_path, capsys):
+    rc = main(["report", "tracking.tracking_uri=sqlite:////proc/sigmarl/mlflow.db"])  # unwritable
+    assert rc == 2
+    assert "unreachable" in capsys.readouterr().err
