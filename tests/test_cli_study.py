@@ -53,10 +53,10 @@ def test_evaluate_missing_checkpoint_exits_2(capsys):
 
 
 def test_evaluate_checkpoint_whose_observation_does_not_fit(tmp_path, capsys):
-    # Trained with 4 agents and 3 observed neighbours: on the 6-agent intersection the
-    # observation would hold 4 neighbours, a different size than the policy takes.
+    # obs.n_nearest=4 with 4 agents observes min(4, 3) = 3 neighbours in training; on the
+    # 6-agent intersection it would observe 4, a different size than the policy takes.
     run = tmp_path / "run"
-    assert main(["train", "ppo=smoke", "ppo.iterations=1", "obs.n_nearest=3", "tracking.enabled=false",
+    assert main(["train", "ppo=smoke", "ppo.iterations=1", "obs.n_nearest=4", "tracking.enabled=false",
                  f"run_dir={run}"]) == 0
     rc = main(["evaluate", str(run / "final.pt"), "--scenario", "Intersection", "eval.n_sims=1",
                "eval.steps=2", "tracking.enabled=false"])
