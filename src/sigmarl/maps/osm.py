@@ -45,7 +45,7 @@ def _nodes(root: ET.Element, path: Path, lane_width: float) -> dict[str, np.ndar
             raise MapError(f"{path}: <node> without an id")
         raw[nid] = (_tags(n), n.attrib.get("lat"), n.attrib.get("lon"))
     lats, lons = [], []
-    for nid, (tags, lat, lon) in raw.items():
+    for nid, (_, lat, lon) in raw.items():
         if lat is not None and lon is not None:
             try:
                 lats.append(float(lat))
