@@ -75,7 +75,9 @@ def nearest_on_polylines(points: torch.Tensor, lines: torch.Tensor) -> tuple[tor
     a = lines[..., :-1, :].unsqueeze(-3)  # [..., L, 1, S, 2]
     d = (lines[..., 1:, :] - lines[..., :-1, :]).unsqueeze(-3)
     ap = points.unsqueeze(-2).unsqueeze(-4) - a  # [..., L, P, S, 2]
-    t = ((ap * d).sum(-1) / (d * d).sum(-1).clamp_min(1e-12)).clamp(0.0, 1.0)
+    dd = (d * d).sum(-1)
+    # Zero-length segments (window padding at a route's end) project onto their start.
+    t = ((ap * d).sum(-1) / torch.where(dd > 0, dd, torch.ones_like(dd))).clamp(0.0, 1.0)
     diff = ap - t.unsqueeze(-1) * d
     dist2, seg = (diff * diff).sum(-1).min(-1)
     return dist2.sqrt(), seg

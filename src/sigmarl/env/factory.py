@@ -27,7 +27,9 @@ class TrafficEnv(VmasEnv):
     def __init__(self, *args, max_steps: int, **kwargs):
         self._max_steps = max_steps
         super().__init__(*args, **kwargs)
-        self._steps = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
+        # Cached: `num_envs` is forwarded to VMAS through torchrl's slow __getattr__ (~0.3 ms).
+        self._n_envs = int(self.batch_size[0])
+        self._steps = torch.zeros(self._n_envs, dtype=torch.long, device=self.device)
 
     def _make_specs(self, env) -> None:
         super()._make_specs(env)
@@ -72,7 +74,7 @@ class TrafficEnv(VmasEnv):
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         mask = None
         if tensordict is not None and "_reset" in tensordict.keys():
-            mask = tensordict.get("_reset").reshape(self.num_envs)
+            mask = tensordict.get("_reset").reshape(self._n_envs)
         if mask is None or mask.all():
             self._env.reset(return_observations=False)
             self._steps.zero_()

@@ -17,15 +17,14 @@ import numpy as np
 import torch
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 from tensordict import TensorDictBase
-from torchrl.envs import EnvBase
+from torchrl.envs import EnvBase, TransformedEnv
+from torchrl.envs.libs.vmas import VmasEnv
 from torchrl.envs.utils import step_mdp
 
 from sigmarl.env.geometry import rect_corners
-from sigmarl.env.route_bank import RouteBank
 from sigmarl.env.scenario import LENGTH, WIDTH, TrafficScenario
 from sigmarl.errors import SigmarlError
 from sigmarl.maps.model import RoadMap
@@ -63,13 +62,18 @@ def _unwrap(obj) -> tuple[TrafficScenario, object | None, RoadMap | None]:
     """(scenario, the VMAS Environment or None, the RoadMap the env was built with or None)."""
     if isinstance(obj, TrafficScenario):
         return obj, None, None
-    base = getattr(obj, "base_env", obj)  # TransformedEnv -> VmasEnv
-    vmas_env = getattr(base, "_env", base)  # VmasEnv -> vmas Environment
+    base = obj.base_env if isinstance(obj, TransformedEnv) else obj  # -> a VmasEnv (subclass)
+    vmas_env = base._env if isinstance(base, VmasEnv) else base  # -> the vmas Environment
     scenario = getattr(vmas_env, "scenario", None)
     if not isinstance(scenario, TrafficScenario):
         raise SigmarlError(f"cannot render {type(obj).__name__}: expected a TrafficScenario env")
     road_map = getattr(base, "_constructor_kwargs", {}).get("road_map")
     return scenario, vmas_env, road_map
+
+
+def scenario_of(env) -> TrafficScenario:
+    """The TrafficScenario behind an env from `make_env` (transformed or not)."""
+    return _unwrap(env)[0]
 
 
 def snapshot(scenario: TrafficScenario, env_index: int = 0, step: int | None = None) -> Snapshot:
@@ -94,20 +98,6 @@ def snapshot(scenario: TrafficScenario, env_index: int = 0, step: int | None = N
     )
 
 
-def _draw_bank(bank: RouteBank, ax: Axes) -> None:
-    """Fallback map when no RoadMap is at hand: every route's corridor boundaries."""
-    lines = []
-    for table, counts in ((bank.left, bank.n_left), (bank.right, bank.n_right)):
-        for r in range(bank.n_routes):
-            lines.append(table[r, : int(counts[r])].cpu().numpy())
-    ax.add_collection(LineCollection(lines, colors="#555555", linewidths=0.6, zorder=1))
-    pts = np.concatenate(lines)
-    lo, hi = pts.min(0) - 0.1, pts.max(0) + 0.1
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_aspect("equal")
-
-
 class Scene:
     """One figure with the map drawn once and per-agent artists updated frame by frame."""
 
@@ -126,12 +116,11 @@ class Scene:
         self.ax, self.fig = ax, ax.figure
         if self.fig.canvas is None or not isinstance(self.fig.canvas, FigureCanvasAgg):
             FigureCanvasAgg(self.fig)
-        if road_map is not None:
-            plot_map(road_map, ax, routes=False)
-            self.name = road_map.name
-        else:
-            _draw_bank(scenario.bank, ax)
-            self.name = "map"
+        road_map = road_map or getattr(scenario, "road_map", None)
+        if road_map is None:
+            raise SigmarlError("rendering a bare scenario needs its map: pass road_map=...")
+        plot_map(road_map, ax, routes=False)
+        self.name = road_map.name
         n = scenario.n_agents
         self.colors = _agent_colors(n)
         self.vehicles = [
@@ -141,8 +130,12 @@ class Scene:
         self.show_ref_points = show_ref_points
         n_ref = scenario.n_ref
         self.ref_dots = ax.scatter(
-            np.zeros(n * n_ref), np.zeros(n * n_ref), s=6, zorder=4,
-            c=np.repeat(np.array(self.colors), n_ref, axis=0), visible=show_ref_points,
+            np.zeros(n * n_ref),
+            np.zeros(n * n_ref),
+            s=6,
+            zorder=4,
+            c=np.repeat(np.array(self.colors), n_ref, axis=0),
+            visible=show_ref_points,
         )
 
     def update(self, snap: Snapshot) -> None:
@@ -204,8 +197,8 @@ def render_state(
     """Draw one environment's current state: map, vehicles, reference points, collisions.
 
     `env_or_scenario` is the env `make_env` returns (or its VmasEnv) or the TrafficScenario
-    itself; the map comes from `road_map`, else from the env's constructor arguments, else
-    (a bare scenario) the route corridors of its RouteBank.
+    itself; the map comes from `road_map`, else from the env's constructor arguments (or a
+    `road_map` attribute of the scenario).
     """
     scenario, vmas_env, env_map = _unwrap(env_or_scenario)
     scene = Scene(scenario, road_map or env_map, ax, show_ref_points, figsize, dpi)
@@ -272,7 +265,12 @@ def render_rollout(
             scene.update(snapshot(scenario, env_index, _step_count(vmas_env, env_index)))
             frames.append(scene.frame())
             td = env.maybe_reset(
-                step_mdp(td, reward_keys=env.reward_keys, done_keys=env.done_keys, action_keys=env.action_keys)
+                step_mdp(
+                    td,
+                    reward_keys=env.reward_keys,
+                    done_keys=env.done_keys,
+                    action_keys=env.action_keys,
+                )
             )
     path.parent.mkdir(parents=True, exist_ok=True)
     write(path, frames, fps)
