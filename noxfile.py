@@ -1,5 +1,7 @@
 """Sessions: tests, lint, bench, demo. Each installs the CPU build of torch first (see README)."""
 
+from pathlib import Path
+
 import nox
 
 nox.options.sessions = ["lint", "tests"]
@@ -28,5 +30,5 @@ def lint(session: nox.Session) -> None:
 def bench(session: nox.Session) -> None:
     """Performance figures: ratios against baselines measured in the same process."""
     _install(session)
-    for script in sorted(__import__("pathlib").Path("benchmarks").glob("bench_*.py")):
+    for script in sorted(Path("benchmarks").glob("bench_*.py")):
         session.run("python", str(script), *session.posargs)
