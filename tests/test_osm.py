@@ -1,4 +1,4 @@
-"""OSM maps: hand-made files of both dialects, round trips, malformed input."""
+"""OSM maps (spec §1.3): hand-made files in both dialects, round trips, malformed input."""
 
 from __future__ import annotations
 
@@ -7,108 +7,205 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sigmarl.compose import map_config
+from sigmarl.compose import compose_config
 from sigmarl.errors import MapError
 from sigmarl.maps import load_map
-from sigmarl.maps.cpm import load_cpm
+from sigmarl.maps.cpm import CPM_LOOPS, load_cpm
+from sigmarl.maps.model import RoadMap
 from sigmarl.maps.osm import load_osm, save_lanelet2_osm
 
 DATA = Path(__file__).parent / "data"
+CENTERLINE = DATA / "centerline_ways.osm"
+LANELET2 = DATA / "lanelet2_two_way.osm"
 
 
-def test_center_line_dialect_by_hand():
-    m = load_osm(DATA / "centerline_ways.osm")
-    assert sorted(m.lanelets) == [1, 2, 3]
-    # lanelet 1: center (0.24, 0.24) -> (1.24, 0.24); boundaries 0.10 m to either side
-    np.testing.assert_allclose(m.lanelets[1].center, [[0.24, 0.24], [1.24, 0.24]], atol=1e-9)
-    np.testing.assert_allclose(m.lanelets[1].left, [[0.24, 0.34], [1.24, 0.34]], atol=1e-9)
-    np.testing.assert_allclose(m.lanelets[1].right, [[0.24, 0.14], [1.24, 0.14]], atol=1e-9)
-    # lanelet 3 runs from (1.24, 0.24) to (2.24, 1.24), direction (1, 1)/sqrt(2): its left
-    # normal is (-1, 1)/sqrt(2), so its left boundary ends at (2.24 - 0.0707, 1.24 + 0.0707)
-    h = 0.1 / np.sqrt(2)
-    np.testing.assert_allclose(m.lanelets[3].left[-1], [2.24 - h, 1.24 + h], atol=1e-9)
-    assert sorted(m.lanelets[1].successors) == [2, 3]
-    assert sorted(r.lanelet_ids for r in m.routes) == [(1, 2), (1, 3)]
-    assert m.routes[0].length == pytest.approx(2.0)
+def unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+# --- center-line ways (SigmaRL style) ------------------------------------------------------
+
+
+def test_centerline_dialect_by_hand():
+    m = load_osm(CENTERLINE)
+    assert m.name == "centerline_ways" and sorted(m.lanelets) == [1, 2, 3]  # ids from lanes=<id>
+    la1, la2, la3 = (m.lanelets[i] for i in (1, 2, 3))
+    # x = (lat - 50.0) * 1e5 + 0.24, y = (lon - 6.0) * 1e5 + 0.24
+    np.testing.assert_allclose(la1.center, [[0.24, 1.24], [1.24, 1.24]], atol=1e-8)
+    np.testing.assert_allclose(la2.center, [[1.24, 1.24], [2.24, 1.24], [2.24, 2.24]], atol=1e-8)
+    np.testing.assert_allclose(la3.center, [[1.24, 1.24], [2.24, 0.24]], atol=1e-8)
+    # Node 2 joins three ways: its normal is the mean of their segments' normals
+    # (north, north, and north-east for the south-east way 3).
+    n2 = unit([0, 2] + unit([1, 1]))
+    np.testing.assert_allclose(la2.left, [[1.24, 1.24] + 0.1 * n2, [2.24, 1.24] + 0.1 * unit([-1, 1]), [2.14, 2.24]], atol=1e-8)
+    np.testing.assert_allclose(la2.right, [[1.24, 1.24] - 0.1 * n2, [2.24, 1.24] - 0.1 * unit([-1, 1]), [2.34, 2.24]], atol=1e-8)
+    np.testing.assert_allclose(la1.left, [[0.24, 1.34], [1.24, 1.24] + 0.1 * n2], atol=1e-8)
+    np.testing.assert_allclose(la3.right[-1], [2.24, 0.24] - 0.1 * unit([1, 1]), atol=1e-8)
+    for la in m.lanelets.values():
+        np.testing.assert_allclose(la.width, 0.2, atol=1e-12)
+    assert la1.successors == [2, 3] and la2.predecessors == [1] and la3.predecessors == [1]
+    assert [r.lanelet_ids for r in m.routes] == [(1, 2), (1, 3)]
+    assert [r.name for r in m.routes] == ["1-2", "1-3"]
+
+
+def test_centerline_lane_width_moves_the_origin():
+    m = load_osm(CENTERLINE, lane_width=0.3)
+    np.testing.assert_allclose(m.lanelets[1].center[0], [0.36, 1.36], atol=1e-8)  # 1.2 * 0.3
+    np.testing.assert_allclose(m.lanelets[1].left[0], [0.36, 1.51], atol=1e-8)
+
+
+def test_explicit_routes_and_broken_route():
+    m = load_osm(CENTERLINE, routes=[[1, 3]])
+    assert [r.lanelet_ids for r in m.routes] == [(1, 3)]
+    with pytest.raises(MapError, match=r"centerline_ways\.osm: route 2-3: lanelet 2 is not connected to lanelet 3"):
+        load_osm(CENTERLINE, routes=[[1, 2], [2, 3]])
+    with pytest.raises(MapError, match=r"centerline_ways\.osm: route 1-9: lanelet 9 does not exist"):
+        load_osm(CENTERLINE, routes=[[1, 9]])
+    with pytest.raises(MapError, match=r"route 1 must be a list of lanelet ids"):
+        load_osm(CENTERLINE, routes=[["a"]])
+
+
+# --- standard Lanelet2 --------------------------------------------------------------------
 
 
 def test_lanelet2_dialect_by_hand():
-    m = load_osm(DATA / "lanelet2.osm")
-    assert sorted(m.lanelets) == [10, 11, 12]
-    # way 202 was stored backwards: lanelet 11's right boundary runs +x at y = -0.2
-    np.testing.assert_allclose(m.lanelets[11].right, [[0, -0.2], [1, -0.2]], atol=1e-12)
-    assert m.lanelets[10].successors == [12]
-    assert (m.lanelets[10].adj_right, m.lanelets[10].adj_right_same) == (11, True)
-    assert sorted(r.lanelet_ids for r in m.routes) == [(10, 12), (11,)]
-    # route 10-12: on lanelet 10 the corridor spans both lanes (0.40 m), on 12 one lane
-    r = next(r for r in m.routes if r.lanelet_ids == (10, 12))
-    assert r.left[0].tolist() == pytest.approx([0.0, 0.2]) and r.right[0].tolist() == pytest.approx([0.0, -0.2])
+    m = load_osm(LANELET2)
+    assert sorted(m.lanelets) == [10, 20, 30, 40]  # the regulatory element is not a lanelet
+    L = m.lanelets
+    np.testing.assert_allclose(L[10].left, [[0, 0.2], [0.5, 0.2], [1, 0.2]])
+    np.testing.assert_allclose(L[10].right, [[0, 0], [0.5, 0], [1, 0]])
+    # 20 drives west: both stored bounds are reversed.
+    np.testing.assert_allclose(L[20].left, [[1, 0.2], [0.5, 0.2], [0, 0.2]])
+    np.testing.assert_allclose(L[20].right, [[1, 0.4], [0.5, 0.4], [0, 0.4]])
+    # 30: left stored westwards; its 2-node right bound gets a point at the left's mid arc length.
+    np.testing.assert_allclose(L[30].left, [[1, 0.2], [1.5, 0.2], [2, 0.2]])
+    np.testing.assert_allclose(L[30].right, [[1, 0], [1.5, 0], [2, 0]])
+    np.testing.assert_allclose(L[40].center, [[2, 0.3], [1.5, 0.3], [1, 0.3]])
+    assert (L[10].successors, L[40].successors, L[30].predecessors, L[20].predecessors) == ([30], [20], [10], [40])
+    assert not L[20].successors and not L[30].successors
+    for a, b in ((10, 20), (20, 10), (30, 40), (40, 30)):
+        assert L[a].adj_left == b and not L[a].adj_left_same  # shared divider, opposite directions
+        assert L[a].adj_right is None
+    assert [r.lanelet_ids for r in m.routes] == [(10, 30), (40, 20)]
 
 
-def test_explicit_routes_are_validated():
-    m = load_osm(DATA / "lanelet2.osm", routes=[[10, 12]])
-    assert [r.lanelet_ids for r in m.routes] == [(10, 12)]
-    with pytest.raises(MapError, match="lanelet 11 is not connected to lanelet 12"):
-        load_osm(DATA / "lanelet2.osm", routes=[[11, 12]])
+def test_lanelet2_falls_back_to_lat_lon(tmp_path):
+    text = LANELET2.read_text()
+    for tag in ("local_x", "local_y"):
+        text = text.replace(f"<tag k='{tag}'", "<tag k='ignored'")
+    f = tmp_path / "latlon.osm"
+    f.write_text(text)
+    by_latlon, by_local = load_osm(f), load_osm(LANELET2)
+    for i, la in by_local.lanelets.items():
+        np.testing.assert_allclose(by_latlon.lanelets[i].left, la.left + 0.24, atol=1e-8)
+        np.testing.assert_allclose(by_latlon.lanelets[i].right, la.right + 0.24, atol=1e-8)
 
 
-@pytest.mark.parametrize("name", ["intersection", "on_ramp", "roundabout", "cpm"])
-def test_round_trip_keeps_geometry_and_routes(tmp_path, name):
-    original = load_cpm("loops") if name == "cpm" else load_map(map_config(name))
-    back = load_osm(save_lanelet2_osm(original, tmp_path / f"{name}.osm"))
-    assert sorted(back.lanelets) == sorted(original.lanelets)
-    for lid, la in original.lanelets.items():
-        np.testing.assert_allclose(back.lanelets[lid].left, la.left, atol=1e-6)
-        np.testing.assert_allclose(back.lanelets[lid].right, la.right, atol=1e-6)
-    assert [r.lanelet_ids for r in back.routes] == [r.lanelet_ids for r in original.routes]
-    for a, b in zip(original.routes, back.routes, strict=True):
-        np.testing.assert_allclose(b.center.numpy(), a.center.numpy(), atol=1e-6)
-        np.testing.assert_allclose(b.left.numpy(), a.left.numpy(), atol=1e-6)
-        np.testing.assert_allclose(b.right.numpy(), a.right.numpy(), atol=1e-6)
+# --- round trips ---------------------------------------------------------------------------
 
 
-def _write(tmp_path, text: str) -> Path:
-    p = tmp_path / "bad.osm"
-    p.write_text(text)
-    return p
+def assert_same_map(a: RoadMap, b: RoadMap) -> None:
+    assert list(a.lanelets) == list(b.lanelets)
+    for i, la in a.lanelets.items():
+        lb = b.lanelets[i]
+        np.testing.assert_allclose(lb.left, la.left, rtol=0, atol=1e-6, err_msg=f"lanelet {i}")
+        np.testing.assert_allclose(lb.right, la.right, rtol=0, atol=1e-6, err_msg=f"lanelet {i}")
+        assert (sorted(lb.successors), sorted(lb.predecessors)) == (sorted(la.successors), sorted(la.predecessors)), i
+        assert (lb.adj_left, lb.adj_right) == (la.adj_left, la.adj_right), i
+        if la.adj_left is not None:
+            assert lb.adj_left_same == la.adj_left_same
+        if la.adj_right is not None:
+            assert lb.adj_right_same == la.adj_right_same
+    assert [(r.lanelet_ids, r.is_loop) for r in a.routes] == [(r.lanelet_ids, r.is_loop) for r in b.routes]
+    for ra, rb in zip(a.routes, b.routes, strict=True):
+        for key in ("center", "left", "right"):
+            assert getattr(ra, key).shape == getattr(rb, key).shape
+            assert float((getattr(ra, key) - getattr(rb, key)).abs().max()) < 1e-6, (ra.name, key)
 
 
-def test_missing_file(tmp_path):
-    with pytest.raises(MapError, match="not found"):
+@pytest.mark.parametrize("name", ["intersection", "on_ramp", "roundabout"])
+def test_builder_round_trip(tmp_path, name):
+    m = load_map(compose_config([f"map={name}"]).map)
+    f = save_lanelet2_osm(m, tmp_path / f"{name}.osm")
+    back = load_osm(f, lane_width=m.lane_width)
+    assert_same_map(m, back)
+    assert [r.name for r in back.routes] == [r.name for r in m.routes]
+
+
+def test_cpm_round_trip(tmp_path):
+    m = load_cpm("loops")
+    f = save_lanelet2_osm(m, tmp_path / "cpm.osm")
+    back = load_osm(f, lane_width=0.15, routes=[[*loop, loop[0]] for loop in CPM_LOOPS])
+    assert_same_map(m, back)
+    assert [r.name for r in back.routes] == [f"loop{i}" for i in range(1, 8)]
+
+
+def test_saved_file_shares_nodes_and_ways(tmp_path):
+    m = load_map(compose_config(["map=intersection"]).map)
+    text = save_lanelet2_osm(m, tmp_path / "x.osm").read_text()
+    # 20 lanelets have 40 bounds; the 4 arm dividers and the 2 straight-through dividers are shared.
+    assert text.count("<way ") == 40 - 6
+    assert text.count("<relation ") == 20
+
+
+# --- malformed input -----------------------------------------------------------------------
+
+
+def write(tmp_path: Path, body: str) -> Path:
+    f = tmp_path / "bad.osm"
+    f.write_text(f"<?xml version='1.0'?>\n<osm version='0.6'>\n{body}\n</osm>\n")
+    return f
+
+
+NODES = "<node id='1' lat='50' lon='6'/><node id='2' lat='50.00001' lon='6'/>"
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        (NODES + "<way id='7'><nd ref='1'/><nd ref='3'/><tag k='lanes' v='1'/></way>", r"way 7 refers to node 3"),
+        ("<node id='1' lat='50' lon='6'/><node id='2'/><way id='7'><nd ref='1'/><nd ref='2'/><tag k='lanes' v='1'/></way>",
+         r"node 2 has no coordinates"),
+        (NODES + "<way id='7'><nd ref='1'/><nd ref='2'/><tag k='lanes' v='one'/></way>", r"way 7 tag lanes"),
+        (NODES + "<way id='7'><nd ref='1'/><tag k='lanes' v='1'/></way>", r"way 7 needs at least 2 nodes"),
+        (NODES + "<way id='7'><nd ref='1'/><nd ref='2'/><tag k='lanes' v='1'/></way>"
+         "<way id='8'><nd ref='2'/><nd ref='1'/><tag k='lanes' v='1'/></way>", r"ways 7 and 8 both have lanes=1"),
+        (NODES + "<way id='7'><nd ref='1'/><nd ref='2'/></way>"
+         "<relation id='5'><member type='way' ref='7' role='left'/><tag k='type' v='lanelet'/></relation>",
+         r"relation 5 \(lanelet\) has no right member way"),
+        (NODES + "<relation id='5'><tag k='type' v='lanelet'/></relation>", r"relation 5 \(lanelet\) has no member ways"),
+        (NODES + "<way id='7'><nd ref='1'/><nd ref='2'/></way><relation id='5'><member type='way' ref='7' role='left'/>"
+         "<member type='way' ref='8' role='right'/><tag k='type' v='lanelet'/></relation>",
+         r"relation 5 \(lanelet\) refers to way 8, which does not exist"),
+        (NODES + "<way id='7'><nd ref='1'/><nd ref='2'/></way>", r"no lanelets found"),
+        ("<node id='1' lat='north' lon='6'/><node id='2' lat='50' lon='6'/>"
+         "<way id='7'><nd ref='1'/><nd ref='2'/><tag k='lanes' v='1'/></way>", r"node 1: lat='north' is not a number"),
+    ],
+)
+def test_malformed_files_name_file_and_element(tmp_path, body, message):
+    f = write(tmp_path, body)
+    with pytest.raises(MapError, match=rf"bad\.osm: .*{message}"):
+        load_osm(f)
+
+
+def test_missing_and_truncated_files(tmp_path):
+    with pytest.raises(MapError, match=r"map file not found: .*nope\.osm"):
         load_osm(tmp_path / "nope.osm")
+    text = LANELET2.read_text()
+    f = tmp_path / "cut.osm"
+    f.write_text(text[: len(text) // 2])
+    with pytest.raises(MapError, match=r"cut\.osm: not well-formed XML .*truncated"):
+        load_osm(f)
+    g = tmp_path / "other.osm"
+    g.write_text("<gpx></gpx>")
+    with pytest.raises(MapError, match=r"other\.osm: root element is <gpx>"):
+        load_osm(g)
 
 
-def test_truncated_file(tmp_path):
-    text = (DATA / "lanelet2.osm").read_text()
-    with pytest.raises(MapError, match="bad.osm: not well-formed"):
-        load_osm(_write(tmp_path, text[: len(text) // 2]))
-
-
-def test_way_with_unknown_node(tmp_path):
-    text = (DATA / "centerline_ways.osm").read_text().replace('<nd ref="3"/>', '<nd ref="99"/>')
-    with pytest.raises(MapError, match="way 101 refers to node '99'"):
-        load_osm(_write(tmp_path, text))
-
-
-def test_node_without_coordinates(tmp_path):
-    text = (DATA / "centerline_ways.osm").read_text().replace('<node id="4" lat="0.00002" lon="0.00001"/>', '<node id="4"/>')
-    with pytest.raises(MapError, match="node 4 has no coordinates"):
-        load_osm(_write(tmp_path, text))
-
-
-def test_relation_without_right_way(tmp_path):
-    text = (DATA / "lanelet2.osm").read_text().replace('<member type="way" ref="204" role="right"/>', "")
-    with pytest.raises(MapError, match="lanelet relation 12 needs a 'left' and a 'right'"):
-        load_osm(_write(tmp_path, text))
-
-
-def test_file_without_lanelets(tmp_path):
-    with pytest.raises(MapError, match="no lanelets"):
-        load_osm(_write(tmp_path, '<osm version="0.6"><node id="1" lat="0" lon="0"/></osm>'))
-
-
-def test_cli_loads_an_osm_file(tmp_path, capsys):
-    from sigmarl.cli import main
-
-    assert main(["maps", "show", str(DATA / "lanelet2.osm"), "--out", str(tmp_path / "m.png")]) == 0
-    assert (tmp_path / "m.png").stat().st_size > 1000
+def test_osm_through_config(tmp_path):
+    cfg = compose_config(["map=osm", f"map.path={LANELET2}", "map.routes=[[10,30]]"]).map
+    m = load_map(cfg)
+    assert m.name == "lanelet2_two_way" and [r.lanelet_ids for r in m.routes] == [(10, 30)]
+    with pytest.raises(MapError, match="map.path"):
+        load_map(compose_config(["map=osm"]).map)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import io
 
 import imageio.v3 as iio
@@ -80,6 +81,16 @@ def test_rollout_with_a_policy_and_a_bad_suffix(env, tmp_path):
     assert len(calls) == 3
     with pytest.raises(SigmarlError, match="gif"):
         render_rollout(env, steps=1, path=tmp_path / "roll.avi")
+
+
+@pytest.mark.skipif(
+    bool(importlib.util.find_spec("imageio_ffmpeg") or importlib.util.find_spec("av")),
+    reason="an ffmpeg writer is installed",
+)
+def test_mp4_without_ffmpeg_suggests_gif(env, tmp_path):
+    with pytest.raises(SigmarlError, match=r"\.gif"):
+        render_rollout(env, steps=1, path=tmp_path / "roll.mp4")
+    assert not (tmp_path / "roll.mp4").exists()
 
 
 def test_colliding_pair_is_highlighted(env):

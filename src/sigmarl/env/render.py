@@ -222,9 +222,15 @@ def _writer_for(path: Path) -> Callable[[Path, list[np.ndarray], int], None]:
 
 
 def _write_gif(path: Path, frames: list[np.ndarray], fps: int) -> None:
-    import imageio.v3 as iio
+    from PIL import Image
 
-    iio.imwrite(path, np.stack(frames), extension=".gif", duration=1000 / fps, loop=0)
+    # Fast octree quantisation per frame: ~2.5x faster than Pillow's default median cut, and
+    # a frame's own palette keeps the collision red however few pixels carry it.
+    images = [
+        Image.fromarray(f).quantize(256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+        for f in frames
+    ]
+    images[0].save(path, save_all=True, append_images=images[1:], duration=1000 / fps, loop=0)
 
 
 def _write_mp4(path: Path, frames: list[np.ndarray], fps: int) -> None:

@@ -26,6 +26,8 @@ from sigmarl.maps.routes import build_route, enumerate_routes
 
 STRAIGHT_STEP = 0.1  # vertex spacing on straight lanes
 ARC_STEP = 0.05  # center-line vertex spacing on curves (boundaries: ~0.035-0.065 m)
+# Largest angle between arc vertices: keeps the polyline bounds w apart to 0.2% on tight turns.
+ARC_ANGLE = 0.1
 MARGIN = 0.1  # bounding box of a built map starts here
 MERGE_TAIL = 0.9  # main road kept after the last on-ramp merge
 _GAP = 0.05  # clearance between lanes that must not touch
@@ -60,7 +62,7 @@ class _Pen:
         p, h = self.point, self.heading
         s = 1.0 if angle > 0 else -1.0
         center = p + s * radius * np.array([-math.sin(h), math.cos(h)])
-        n = max(2, math.ceil(radius * abs(angle) / ARC_STEP - 1e-9))
+        n = max(2, math.ceil(radius * abs(angle) / ARC_STEP - 1e-9), math.ceil(abs(angle) / ARC_ANGLE - 1e-9))
         for i in range(1, n + 1):
             hi = h + angle * i / n
             self.points.append(center + s * radius * np.array([math.sin(hi), -math.cos(hi)]))
@@ -105,6 +107,7 @@ def _finish(name: str, lanelets: dict[int, Lanelet], width: float) -> RoadMap:
     """Translate into place, sort the links and enumerate the routes."""
     pts = np.concatenate([np.concatenate([la.left, la.right]) for la in lanelets.values()])
     shift = MARGIN - pts.min(0)
+    lanelets = dict(sorted(lanelets.items()))
     for la in lanelets.values():
         la.left, la.right = la.left + shift, la.right + shift
         la.successors.sort()

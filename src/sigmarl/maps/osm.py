@@ -1,312 +1,419 @@
-"""Maps drawn in JOSM: OSM files in two dialects, and a Lanelet2 writer.
+"""Maps drawn by users in JOSM (spec §1.3): two OSM dialects, detected automatically.
 
-- Center-line ways (the SigmaRL style): each way tagged `lanes=<id>` is one lanelet's center
-  line; boundaries are offset by half a lane width along the left normal.
-- Standard Lanelet2: relations `type=lanelet` with `left`/`right` member ways.
-Connectivity comes from shared end/start points, adjacency from shared boundaries. Routes
-come from the caller, from `type=sigmarl_route` relations (written by `save_lanelet2_osm`),
-or are enumerated from the lanelet graph.
+* Center-line ways (SigmaRL style): every `way` tagged `lanes=<int>` is one
+  lanelet's center line, its `nd` refs in driving order; the integer is the
+  lanelet id. Boundaries are offsets of ±w/2 along the per-vertex left normal
+  (the normalised mean of the adjacent segments' normals; at a node where
+  ways join, the mean over every segment that touches the node, so joined
+  lanelets share their boundary end points). A way whose last node is
+  another way's first node is that way's predecessor.
+* Standard Lanelet2: every `relation` tagged `type=lanelet` with `left` and
+  `right` member ways. The bounds may be stored in either direction; they are
+  oriented so that `left` lies left of the driving direction. A bound with
+  fewer points is resampled at the other's arc-length fractions. Successors
+  come from center lines whose end and start meet (1e-6 m); neighbours from
+  shared bound ways or coinciding bounds, or from the optional relation tags
+  `sigmarl:adjacent_left|right=<id>` with `sigmarl:adjacent_left|right_dir=same|opposite`
+  (written by `save_lanelet2_osm` for neighbours whose bounds are not shared).
+
+Coordinates: `local_x`/`local_y` node tags when every node used has them,
+else x = (lat - min lat)·1e5 + 1.2·w, y = (lon - min lon)·1e5 + 1.2·w over
+the nodes used (1e-5 degree = 1 m, lat -> x, lon -> y).
+
+Routes: lists of lanelet ids (a list whose last id repeats its first is a
+loop), or every entry to every reachable exit when none are given.
 """
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from sigmarl.errors import MapError
-from sigmarl.maps.model import Lanelet, RoadMap
-from sigmarl.maps.routes import build_route, enumerate_routes, infer_adjacency
+from sigmarl.maps.model import Lanelet, RoadMap, Route
+from sigmarl.maps.routes import build_route, enumerate_routes
 
-DEG_TO_M = 1e5  # 1e-5 degree = 1 m, no cosine correction (the SigmaRL convention)
-_TOL = 1e-6
+_TOL = 1e-6  # points closer than this coincide
+_DEG_TO_M = 1e5
+_ADJ_TAG = "sigmarl:adjacent_"
+
+
+@dataclass
+class _Osm:
+    path: Path
+    nodes: dict[int, ET.Element] = field(default_factory=dict)
+    ways: dict[int, tuple[list[int], dict[str, str]]] = field(default_factory=dict)
+    relations: dict[int, tuple[list[tuple[str, str, str]], dict[str, str]]] = field(default_factory=dict)
 
 
 def _tags(el: ET.Element) -> dict[str, str]:
-    return {t.attrib.get("k", ""): t.attrib.get("v", "") for t in el.findall("tag")}
+    return {t.get("k", ""): t.get("v", "") for t in el.findall("tag")}
 
 
-def _parse(path: Path) -> ET.Element:
+def _int(value: str | None, what: str) -> int:
     try:
-        return ET.parse(path).getroot()
+        return int(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as e:
+        raise MapError(f"{what}: expected an integer, got {value!r}") from e
+
+
+def _read(path: Path) -> _Osm:
+    try:
+        root = ET.parse(path).getroot()
     except FileNotFoundError as e:
         raise MapError(f"map file not found: {path}") from e
+    except (IsADirectoryError, PermissionError) as e:
+        raise MapError(f"{path}: cannot read the map file ({e.strerror})") from e
     except ET.ParseError as e:
-        raise MapError(f"{path}: not well-formed XML ({e})") from e
+        raise MapError(f"{path}: not well-formed XML ({e}); is the file truncated?") from e
+    if root.tag != "osm":
+        raise MapError(f"{path}: root element is <{root.tag}>, expected <osm>")
+    osm = _Osm(path)
+    for el in root.findall("node"):
+        osm.nodes[_int(el.get("id"), f"{path}: <node> id")] = el
+    for el in root.findall("way"):
+        wid = _int(el.get("id"), f"{path}: <way> id")
+        refs = [_int(nd.get("ref"), f"{path}: way {wid} <nd> ref") for nd in el.findall("nd")]
+        osm.ways[wid] = (refs, _tags(el))
+    for el in root.findall("relation"):
+        rid = _int(el.get("id"), f"{path}: <relation> id")
+        members = [(m.get("type", ""), m.get("ref", ""), m.get("role", "")) for m in el.findall("member")]
+        osm.relations[rid] = (members, _tags(el))
+    return osm
 
 
-def _nodes(root: ET.Element, path: Path, lane_width: float) -> dict[str, np.ndarray]:
-    """Node id -> local (x, y): local_x/local_y tags when present, else scaled lat/lon."""
-    raw: dict[str, tuple[dict[str, str], str | None, str | None]] = {}
-    for n in root.findall("node"):
-        nid = n.attrib.get("id")
-        if nid is None:
-            raise MapError(f"{path}: <node> without an id")
-        raw[nid] = (_tags(n), n.attrib.get("lat"), n.attrib.get("lon"))
-    lats, lons = [], []
-    for nid, (_, lat, lon) in raw.items():
-        if lat is not None and lon is not None:
-            try:
-                lats.append(float(lat))
-                lons.append(float(lon))
-            except ValueError as e:
-                raise MapError(f"{path}: node {nid} has bad lat/lon {lat!r}/{lon!r}") from e
-    lat0, lon0 = (min(lats), min(lons)) if lats else (0.0, 0.0)
-    out = {}
-    for nid, (tags, lat, lon) in raw.items():
-        try:
-            if "local_x" in tags and "local_y" in tags:
-                out[nid] = np.array([float(tags["local_x"]), float(tags["local_y"])])
-            elif lat is not None and lon is not None:
-                out[nid] = np.array([(float(lat) - lat0) * DEG_TO_M + 1.2 * lane_width,
-                                     (float(lon) - lon0) * DEG_TO_M + 1.2 * lane_width])
-            else:
-                raise MapError(f"{path}: node {nid} has no coordinates (lat/lon or local_x/local_y)")
-        except ValueError as e:
-            raise MapError(f"{path}: node {nid} has bad coordinates") from e
-    return out
+def _float(node: ET.Element, key: str, tags: dict[str, str], where: str) -> float:
+    raw = tags[key] if key in tags else node.get(key)
+    try:
+        value = float(raw)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as e:
+        raise MapError(f"{where}: {key}={raw!r} is not a number") from e
+    if not np.isfinite(value):
+        raise MapError(f"{where}: {key}={raw!r} is not finite")
+    return value
 
 
-def _ways(root: ET.Element, nodes: dict[str, np.ndarray], path: Path) -> dict[str, tuple[list[str], dict]]:
-    ways = {}
-    for w in root.findall("way"):
-        wid = w.attrib.get("id")
-        refs = [nd.attrib.get("ref", "") for nd in w.findall("nd")]
-        for r in refs:
-            if r not in nodes:
-                raise MapError(f"{path}: way {wid} refers to node {r!r}, which does not exist")
-        ways[wid] = (refs, _tags(w))
-    return ways
+def _coordinates(osm: _Osm, used: set[int], width: float) -> dict[int, np.ndarray]:
+    """Local (x, y) of every used node: local_x/local_y tags if all have them, else lat/lon."""
+    tags = {nid: _tags(osm.nodes[nid]) for nid in used}
+    where = {nid: f"{osm.path}: node {nid}" for nid in used}
+    if all("local_x" in t and "local_y" in t for t in tags.values()):
+        return {
+            nid: np.array([_float(osm.nodes[nid], "local_x", t, where[nid]), _float(osm.nodes[nid], "local_y", t, where[nid])])
+            for nid, t in tags.items()
+        }
+    latlon = {}
+    for nid in sorted(used):
+        node = osm.nodes[nid]
+        if node.get("lat") is None or node.get("lon") is None:
+            raise MapError(f"{where[nid]} has no coordinates (needs lat/lon or local_x/local_y)")
+        latlon[nid] = np.array([_float(node, "lat", {}, where[nid]), _float(node, "lon", {}, where[nid])])
+    origin = np.min(np.stack(list(latlon.values())), axis=0)
+    return {nid: (ll - origin) * _DEG_TO_M + 1.2 * width for nid, ll in latlon.items()}
+
+
+def _way_nodes(osm: _Osm, wid: int, owner: str) -> list[int]:
+    if wid not in osm.ways:
+        raise MapError(f"{osm.path}: {owner} refers to way {wid}, which does not exist")
+    refs = osm.ways[wid][0]
+    for nid in refs:
+        if nid not in osm.nodes:
+            raise MapError(f"{osm.path}: way {wid} refers to node {nid}, which does not exist")
+    if len(refs) < 2:
+        raise MapError(f"{osm.path}: way {wid} needs at least 2 nodes, has {len(refs)}")
+    return refs
 
 
 def _left_normals(points: np.ndarray) -> np.ndarray:
-    """Unit left normals at each vertex: the mean of the adjacent segments' normals."""
-    seg = np.diff(points, axis=0)
-    seg = seg / np.linalg.norm(seg, axis=1, keepdims=True)
-    tangent = np.concatenate([seg[:1], seg[:-1] + seg[1:], seg[-1:]])
-    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
-    return np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    """Unit left normal of each segment."""
+    d = np.diff(points, axis=0)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    return np.stack([-d[:, 1], d[:, 0]], axis=-1)
 
 
-def _center_line_dialect(ways, nodes, path: Path, lane_width: float) -> tuple[dict[int, Lanelet], dict]:
-    lanelets: dict[int, Lanelet] = {}
-    ends: dict[int, tuple[str, str]] = {}
-    for wid, (refs, tags) in ways.items():
+def _unit_or(v: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v / n if n > 1e-9 else fallback
+
+
+def _centerline_lanelets(osm: _Osm, width: float) -> dict[int, Lanelet]:
+    """Dialect (a): one lanelet per way tagged lanes=<id>."""
+    owner: dict[int, int] = {}  # lanelet id -> way id
+    refs: dict[int, list[int]] = {}
+    for wid, (_, tags) in osm.ways.items():
         if "lanes" not in tags:
             continue
-        try:
-            lid = int(tags["lanes"])
-        except ValueError as e:
-            raise MapError(f"{path}: way {wid} has lanes={tags['lanes']!r}, not an integer id") from e
-        if len(refs) < 2:
-            raise MapError(f"{path}: way {wid} (lanelet {lid}) needs at least 2 nodes")
-        if lid in lanelets:
-            raise MapError(f"{path}: lanelet id {lid} is used by two ways")
-        center = np.stack([nodes[r] for r in refs])
-        offset = _left_normals(center) * lane_width / 2
-        lanelets[lid] = Lanelet(lid, center + offset, center - offset)
-        ends[lid] = (refs[0], refs[-1])
-    for a, (_, a_end) in ends.items():
-        for b, (b_start, _) in ends.items():
-            if a != b and a_end == b_start:
-                lanelets[a].successors.append(b)
-                lanelets[b].predecessors.append(a)
-    return lanelets, {}
+        lid = _int(tags["lanes"], f"{osm.path}: way {wid} tag lanes")
+        if lid in owner:
+            raise MapError(f"{osm.path}: ways {owner[lid]} and {wid} both have lanes={lid}; lanelet ids must be unique")
+        owner[lid] = wid
+        refs[lid] = _way_nodes(osm, wid, f"way {wid}")
+    xy = _coordinates(osm, {n for r in refs.values() for n in r}, width)
+    centers, segs = {}, {}
+    for lid, r in refs.items():
+        # Drop repeated nodes: a zero-length segment has no direction.
+        keep = [r[0]] + [b for a, b in zip(r[:-1], r[1:], strict=True) if np.linalg.norm(xy[b] - xy[a]) > _TOL]
+        if len(keep) < 2:
+            raise MapError(f"{osm.path}: way {owner[lid]} (lanelet {lid}) has no length")
+        refs[lid] = keep
+        centers[lid] = np.stack([xy[n] for n in keep])
+        segs[lid] = _left_normals(centers[lid])
+    # Junction normals: the mean over every way segment that touches an end node.
+    touching: dict[int, list[np.ndarray]] = {}
+    for lid, r in refs.items():
+        touching.setdefault(r[0], []).append(segs[lid][0])
+        touching.setdefault(r[-1], []).append(segs[lid][-1])
+    lanelets = {}
+    for lid, r in refs.items():
+        seg = segs[lid]
+        normals = np.concatenate([seg[:1], seg[:-1] + seg[1:], seg[-1:]])
+        normals[0] = np.sum(touching[r[0]], axis=0)
+        normals[-1] = np.sum(touching[r[-1]], axis=0)
+        fallback = np.concatenate([seg[:1], seg])
+        normals = np.stack([_unit_or(v, f) for v, f in zip(normals, fallback, strict=True)])
+        c = centers[lid]
+        lanelets[lid] = Lanelet(lid, c + 0.5 * width * normals, c - 0.5 * width * normals)
+    first: dict[int, list[int]] = {}
+    for lid, r in refs.items():
+        first.setdefault(r[0], []).append(lid)
+    for lid, r in refs.items():
+        for nxt in sorted(first.get(r[-1], [])):
+            if nxt != lid:
+                lanelets[lid].successors.append(nxt)
+                lanelets[nxt].predecessors.append(lid)
+    return lanelets
 
 
-def _orient(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Both boundaries in one direction: the one in which the `left` member lies on the left
-    (the members' roles are authoritative; their stored directions are not)."""
-    if np.linalg.norm(left[0] - right[-1]) + np.linalg.norm(left[-1] - right[0]) < np.linalg.norm(
-        left[0] - right[0]
-    ) + np.linalg.norm(left[-1] - right[-1]):
-        left = left[::-1]
-    direction = (right[-1] - right[0]) + (left[-1] - left[0])
-    to_left = left.mean(0) - right.mean(0)
-    if direction[0] * to_left[1] - direction[1] * to_left[0] < 0:
-        left, right = left[::-1], right[::-1]
-    return left, right
+def _resample_like(points: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+    """Points at the given fractions of a polyline's arc length."""
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=-1))])
+    s = fractions * cum[-1]
+    return np.stack([np.interp(s, cum, points[:, 0]), np.interp(s, cum, points[:, 1])], axis=-1)
 
 
-def _same_count(a: np.ndarray, n: int) -> np.ndarray:
-    """A polyline resampled to n points at equal fractions of its length (unchanged if it has n)."""
-    if len(a) == n:
-        return a
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(a, axis=0), axis=1))])
-    t = np.linspace(0.0, s[-1], n)
-    return np.stack([np.interp(t, s, a[:, 0]), np.interp(t, s, a[:, 1])], axis=1)
+def _fractions(points: np.ndarray) -> np.ndarray:
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=-1))])
+    return cum / cum[-1] if cum[-1] > 0 else np.linspace(0.0, 1.0, len(points))
 
 
-def _lanelet2_dialect(root, ways, nodes, path: Path) -> tuple[dict[int, Lanelet], dict]:
-    lanelets: dict[int, Lanelet] = {}
-    routes: dict[str, tuple[list[int], bool]] = {}
-    way_of: dict[int, dict[str, str]] = {}
-    explicit: dict[int, dict[str, str]] = {}
-    for rel in root.findall("relation"):
-        tags = _tags(rel)
-        rid = rel.attrib.get("id", "?")
-        if tags.get("type") == "sigmarl_route":
-            members = [m.attrib.get("ref", "") for m in rel.findall("member")]
-            routes[tags.get("name", rid)] = ([int(m) for m in members], tags.get("loop") == "yes")
-            continue
+def _orient(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, bool]:
+    """Both bounds in driving order, with the same number of points; and whether each was reversed."""
+    rev_r = (np.linalg.norm(left[0] - right[-1]) + np.linalg.norm(left[-1] - right[0])) < (
+        np.linalg.norm(left[0] - right[0]) + np.linalg.norm(left[-1] - right[-1])
+    )
+    if rev_r:
+        right = right[::-1]
+    if len(left) > len(right):
+        right = _resample_like(right, _fractions(left))
+    elif len(right) > len(left):
+        left = _resample_like(left, _fractions(right))
+    center = 0.5 * (left + right)
+    tangent = np.gradient(center, axis=0)
+    across = left - right
+    # The left bound must lie left of the driving direction.
+    if np.sum(tangent[:, 0] * across[:, 1] - tangent[:, 1] * across[:, 0]) < 0:
+        return left[::-1].copy(), right[::-1].copy(), True, not rev_r
+    return left, right, False, bool(rev_r)
+
+
+def _lanelet2_lanelets(osm: _Osm, width: float) -> tuple[dict[int, Lanelet], dict[int, tuple]]:
+    """Dialect (b): one lanelet per relation type=lanelet; also each one's bound ways and tags."""
+    bounds: dict[int, tuple[list[int], list[int], int, int, dict[str, str]]] = {}
+    for rid, (members, tags) in osm.relations.items():
         if tags.get("type") != "lanelet":
             continue
-        bounds, bound_ways = {}, {}
-        for m in rel.findall("member"):
-            role = m.attrib.get("role")
+        where = f"relation {rid} (lanelet)"
+        if not members:
+            raise MapError(f"{osm.path}: {where} has no member ways")
+        found = {}
+        for mtype, ref, role in members:
             if role in ("left", "right"):
-                ref = m.attrib.get("ref", "")
-                if ref not in ways:
-                    raise MapError(f"{path}: lanelet relation {rid} refers to way {ref!r}, which does not exist")
-                bounds[role] = np.stack([nodes[r] for r in ways[ref][0]])
-                bound_ways[role] = ref
-        if set(bounds) != {"left", "right"}:
-            raise MapError(f"{path}: lanelet relation {rid} needs a 'left' and a 'right' member way")
-        if min(len(b) for b in bounds.values()) < 2:
-            raise MapError(f"{path}: lanelet relation {rid} has a boundary with fewer than 2 nodes")
-        try:
-            lid = int(rid)
-        except ValueError as e:
-            raise MapError(f"{path}: lanelet relation id {rid!r} is not an integer") from e
-        left, right = _orient(bounds["left"], bounds["right"])
-        n = max(len(left), len(right))
-        lanelets[lid] = Lanelet(lid, _same_count(left, n), _same_count(right, n))
-        way_of[lid] = bound_ways
-        explicit[lid] = tags
-    if any("sigmarl_successors" in t for t in explicit.values()):
-        _explicit_graph(lanelets, explicit, path)
-    else:
-        _derived_graph(lanelets, way_of)
-    return lanelets, routes
+                if mtype != "way":
+                    raise MapError(f"{osm.path}: {where} member {role} is a {mtype or '?'}, expected a way")
+                if role in found:
+                    raise MapError(f"{osm.path}: {where} has more than one {role} member")
+                found[role] = _int(ref, f"{osm.path}: {where} member {role} ref")
+        for role in ("left", "right"):
+            if role not in found:
+                raise MapError(f"{osm.path}: {where} has no {role} member way")
+        left_nodes = _way_nodes(osm, found["left"], where)
+        right_nodes = _way_nodes(osm, found["right"], where)
+        bounds[rid] = (left_nodes, right_nodes, found["left"], found["right"], tags)
+    xy = _coordinates(osm, {n for b in bounds.values() for n in (*b[0], *b[1])}, width)
+    lanelets, info = {}, {}
+    for rid, (ln, rn, lw, rw, tags) in bounds.items():
+        left, right, rev_l, rev_r = _orient(np.stack([xy[n] for n in ln]), np.stack([xy[n] for n in rn]))
+        lanelets[rid] = Lanelet(rid, left, right)
+        info[rid] = (lw, rev_l, rw, rev_r, tags)
+    _link_by_points(lanelets)
+    _adjacency(lanelets, info, osm.path)
+    return lanelets, info
 
 
-def _explicit_graph(lanelets: dict[int, Lanelet], tags: dict[int, dict], path: Path) -> None:
-    """Successors and neighbours as `save_lanelet2_osm` recorded them (exact round trip)."""
-
-    def ids(text: str) -> list[int]:
-        return [int(x) for x in text.split(",") if x.strip()]
-
-    for lid, t in tags.items():
-        la = lanelets[lid]
-        try:
-            la.successors = ids(t.get("sigmarl_successors", ""))
-            la.predecessors = ids(t.get("sigmarl_predecessors", ""))
-            for side in ("left", "right"):
-                if f"sigmarl_adj_{side}" in t:
-                    setattr(la, f"adj_{side}", int(t[f"sigmarl_adj_{side}"]))
-                    setattr(la, f"adj_{side}_same", t.get(f"sigmarl_adj_{side}_dir", "same") == "same")
-        except ValueError as e:
-            raise MapError(f"{path}: lanelet relation {lid} has a malformed sigmarl_* tag ({e})") from e
+def _link_by_points(lanelets: dict[int, Lanelet]) -> None:
+    """b follows a when a's center line ends where b's starts."""
+    ids = sorted(lanelets)
+    ends = np.stack([lanelets[i].center[-1] for i in ids])
+    starts = np.stack([lanelets[i].center[0] for i in ids])
+    close = np.linalg.norm(ends[:, None] - starts[None], axis=-1) < _TOL
+    for a, b in zip(*np.nonzero(close), strict=True):
+        if a != b:
+            lanelets[ids[a]].successors.append(ids[b])
+            lanelets[ids[b]].predecessors.append(ids[a])
 
 
-def _derived_graph(lanelets: dict[int, Lanelet], way_of: dict[int, dict[str, str]]) -> None:
-    """Lanelet2's own conventions: a center line ending where another starts is a successor;
-    lanelets sharing a boundary way are neighbours (same direction when one's left way is the
-    other's right way, opposite when both use it as their left)."""
-    for a in lanelets.values():
-        for b in lanelets.values():
-            if a.id != b.id and np.linalg.norm(a.center[-1] - b.center[0]) < _TOL:
-                a.successors.append(b.id)
-                b.predecessors.append(a.id)
-    for a in lanelets.values():
-        for b in lanelets.values():
-            if a.id == b.id:
+def _same(p: np.ndarray, q: np.ndarray) -> bool:
+    return p.shape == q.shape and float(np.abs(p - q).max()) < _TOL
+
+
+def _adjacency(lanelets: dict[int, Lanelet], info: dict[int, tuple], path: Path) -> None:
+    """Neighbours from shared bound ways or coinciding bounds; explicit tags override."""
+    for a, la in lanelets.items():
+        lw, rev_l, rw, rev_r, _ = info[a]
+        for b, lb in lanelets.items():
+            if a == b:
                 continue
-            if way_of[a.id]["left"] == way_of[b.id]["right"]:
-                a.adj_left, a.adj_left_same = b.id, True
-                b.adj_right, b.adj_right_same = a.id, True
-            elif way_of[a.id]["left"] == way_of[b.id]["left"]:
-                a.adj_left, a.adj_left_same = b.id, False
+            blw, brev_l, brw, brev_r, _ = info[b]
+            if la.adj_left is None:
+                if (lw == brw and rev_l == brev_r) or _same(la.left, lb.right):
+                    la.adj_left, la.adj_left_same = b, True
+                elif (lw == blw and rev_l != brev_l) or _same(la.left, lb.left[::-1]):
+                    la.adj_left, la.adj_left_same = b, False
+            if la.adj_right is None:
+                if (rw == blw and rev_r == brev_l) or _same(la.right, lb.left):
+                    la.adj_right, la.adj_right_same = b, True
+                elif (rw == brw and rev_r != brev_r) or _same(la.right, lb.right[::-1]):
+                    la.adj_right, la.adj_right_same = b, False
+    for a, la in lanelets.items():
+        tags = info[a][4]
+        for side in ("left", "right"):
+            if _ADJ_TAG + side not in tags:
+                continue
+            where = f"{path}: relation {a} tag {_ADJ_TAG}{side}"
+            other = _int(tags[_ADJ_TAG + side], where)
+            if other not in lanelets:
+                raise MapError(f"{where}: lanelet {other} does not exist")
+            direction = tags.get(f"{_ADJ_TAG}{side}_dir", "same")
+            if direction not in ("same", "opposite"):
+                raise MapError(f"{where}_dir: expected same or opposite, got {direction!r}")
+            setattr(la, f"adj_{side}", other)
+            setattr(la, f"adj_{side}_same", direction == "same")
 
 
-def load_osm(path: str | Path, lane_width: float = 0.20, routes=None, name: str | None = None) -> RoadMap:
-    """A RoadMap from an OSM file of either dialect (detected from its content)."""
+def _routes(path: Path, lanelets: dict[int, Lanelet], routes: Sequence | None) -> list[Route]:
+    if not routes:
+        seqs = enumerate_routes(lanelets)
+        if not seqs:
+            raise MapError(f"{path}: no entry lanelets (every lanelet has a predecessor); list the routes explicitly")
+        specs = [(ids, False) for ids in seqs]
+    else:
+        specs = []
+        for i, r in enumerate(routes):
+            try:
+                ids = [int(x) for x in r]
+            except (TypeError, ValueError) as e:
+                raise MapError(f"{path}: route {i + 1} must be a list of lanelet ids, got {r!r}") from e
+            loop = len(ids) > 1 and ids[0] == ids[-1]
+            specs.append((ids[:-1] if loop else ids, loop))
+    out, n_loops = [], 0
+    for ids, loop in specs:
+        n_loops += loop
+        name = f"loop{n_loops}" if loop else "-".join(map(str, ids))
+        try:
+            out.append(build_route(name, ids, lanelets, loop=loop))
+        except MapError as e:
+            raise MapError(f"{path}: {e}") from e
+    return out
+
+
+def load_osm(
+    path: str | Path, lane_width: float = 0.20, routes: Sequence[Sequence[int]] | None = None, name: str | None = None
+) -> RoadMap:
+    """A RoadMap from an OSM file in either dialect (see the module docstring)."""
     path = Path(path)
-    root = _parse(path)
-    nodes = _nodes(root, path, lane_width)
-    ways = _ways(root, nodes, path)
-    is_lanelet2 = any(_tags(r).get("type") == "lanelet" for r in root.findall("relation"))
-    if is_lanelet2:
-        lanelets, stored = _lanelet2_dialect(root, ways, nodes, path)
+    osm = _read(path)
+    if any(tags.get("type") == "lanelet" for _, tags in osm.relations.values()):
+        lanelets, _ = _lanelet2_lanelets(osm, lane_width)
+    elif any("lanes" in tags for _, tags in osm.ways.values()):
+        lanelets = _centerline_lanelets(osm, lane_width)
     else:
-        lanelets, stored = _center_line_dialect(ways, nodes, path, lane_width)
-    if not lanelets:
-        raise MapError(f"{path}: no lanelets (no `type=lanelet` relations and no ways tagged `lanes=<id>`)")
-    infer_adjacency(lanelets)
-    widths = np.concatenate([la.width for la in lanelets.values()])
-    built = []
-    if routes:
-        for i, ids in enumerate(routes):
-            ids = [int(x) for x in ids]
-            loop = ids[0] in lanelets.get(ids[-1], Lanelet(-1, np.zeros((2, 2)), np.zeros((2, 2)))).successors
-            built.append(build_route(f"route{i + 1}", ids, lanelets, loop=loop))
-    elif stored:
-        built = [build_route(n, ids, lanelets, loop=loop) for n, (ids, loop) in stored.items()]
-    else:
-        built = [build_route("-".join(map(str, ids)), ids, lanelets) for ids in enumerate_routes(lanelets)]
-    if not built:
-        raise MapError(f"{path}: no routes (the lanelet graph has no entry; give map.routes=[[ids...]])")
-    return RoadMap(name=name or path.stem, lanelets=lanelets, routes=built,
-                   lane_width=float(np.median(widths)), source=str(path))
+        raise MapError(
+            f"{path}: no lanelets found: expected relations tagged type=lanelet (Lanelet2) "
+            "or ways tagged lanes=<id> (center lines)"
+        )
+    for la in lanelets.values():
+        la.successors.sort()
+        la.predecessors.sort()
+    lanelets = dict(sorted(lanelets.items()))
+    return RoadMap(
+        name=name or path.stem,
+        lanelets=lanelets,
+        routes=_routes(path, lanelets, routes),
+        lane_width=lane_width,
+        source=str(path),
+    )
 
 
-def save_lanelet2_osm(road_map: RoadMap, path: str | Path) -> Path:
-    """Write a map as standard Lanelet2 OSM (local_x/local_y at full precision) plus its routes."""
+def save_lanelet2_osm(roadmap: RoadMap, path: str | Path) -> Path:
+    """Write a map as Lanelet2 OSM: local_x/local_y at full precision, bounds shared where equal.
+
+    Nodes at the same point (to 1e-9 m) and bounds with the same nodes (in
+    either direction) are written once, as JOSM users draw them. lat/lon
+    carry x/y at 1e-5 degree per metre.
+    """
     path = Path(path)
     root = ET.Element("osm", version="0.6", generator="sigmarl")
-    next_id = [0]
+    nodes: list[ET.Element] = []
+    ways: list[ET.Element] = []
+    node_ids: dict[tuple[float, float], int] = {}
+    way_ids: dict[tuple[int, ...], int] = {}
 
-    def new_id() -> str:
-        next_id[0] -= 1  # negative ids: new objects, as JOSM writes them
-        return str(next_id[0])
+    def node(p: np.ndarray) -> int:
+        key = (round(float(p[0]), 9), round(float(p[1]), 9))
+        if key not in node_ids:
+            nid = node_ids[key] = len(node_ids) + 1
+            x, y = float(p[0]), float(p[1])
+            el = ET.Element("node", id=str(nid), lat=repr(x / _DEG_TO_M), lon=repr(y / _DEG_TO_M))
+            nodes.append(el)
+            ET.SubElement(el, "tag", k="local_x", v=repr(x))
+            ET.SubElement(el, "tag", k="local_y", v=repr(y))
+        return node_ids[key]
 
-    def tag(el: ET.Element, k: str, v: str) -> None:
-        ET.SubElement(el, "tag", k=k, v=v)
-
-    def way(points: np.ndarray, kind: str) -> str:
-        refs = []
-        for x, y in points:
-            nid = new_id()
-            n = ET.SubElement(root, "node", id=nid, lat=repr(float(x) / DEG_TO_M), lon=repr(float(y) / DEG_TO_M))
-            tag(n, "local_x", repr(float(x)))
-            tag(n, "local_y", repr(float(y)))
-            refs.append(nid)
-        wid = new_id()
-        w = ET.SubElement(root, "way", id=wid)
+    def way(points: np.ndarray) -> int:
+        refs = tuple(node(p) for p in points)
+        for key in (refs, refs[::-1]):
+            if key in way_ids:
+                return way_ids[key]
+        wid = way_ids[refs] = len(way_ids) + 1
+        el = ET.Element("way", id=str(wid))
+        ways.append(el)
         for r in refs:
-            ET.SubElement(w, "nd", ref=r)
-        tag(w, "type", kind)
+            ET.SubElement(el, "nd", ref=str(r))
+        ET.SubElement(el, "tag", k="type", v="line_thin")
+        ET.SubElement(el, "tag", k="subtype", v="solid")
         return wid
 
     relations = []
-    for la in road_map.lanelets.values():
-        left, right = way(la.left, "line_thin"), way(la.right, "line_thin")
+    for la in roadmap.lanelets.values():
         rel = ET.Element("relation", id=str(la.id))
-        ET.SubElement(rel, "member", type="way", ref=left, role="left")
-        ET.SubElement(rel, "member", type="way", ref=right, role="right")
-        tag(rel, "type", "lanelet")
-        tag(rel, "subtype", "road")
-        # The graph as it is, so that a round trip needs no inference (Lanelet2 tools
-        # ignore tags they do not know).
-        tag(rel, "sigmarl_successors", ",".join(map(str, la.successors)))
-        tag(rel, "sigmarl_predecessors", ",".join(map(str, la.predecessors)))
+        ET.SubElement(rel, "member", type="way", ref=str(way(la.left)), role="left")
+        ET.SubElement(rel, "member", type="way", ref=str(way(la.right)), role="right")
+        for k, v in (("type", "lanelet"), ("subtype", "road"), ("location", "urban"), ("one_way", "yes")):
+            ET.SubElement(rel, "tag", k=k, v=v)
         for side in ("left", "right"):
             other = getattr(la, f"adj_{side}")
             if other is not None:
-                tag(rel, f"sigmarl_adj_{side}", str(other))
-                tag(rel, f"sigmarl_adj_{side}_dir", "same" if getattr(la, f"adj_{side}_same") else "opposite")
+                same = getattr(la, f"adj_{side}_same")
+                ET.SubElement(rel, "tag", k=_ADJ_TAG + side, v=str(other))
+                ET.SubElement(rel, "tag", k=f"{_ADJ_TAG}{side}_dir", v="same" if same else "opposite")
         relations.append(rel)
-    for r in road_map.routes:
-        rel = ET.Element("relation", id=new_id())
-        for lid in r.lanelet_ids:
-            ET.SubElement(rel, "member", type="relation", ref=str(lid), role="")
-        tag(rel, "type", "sigmarl_route")
-        tag(rel, "name", r.name)
-        tag(rel, "loop", "yes" if r.is_loop else "no")
-        relations.append(rel)
-    root.extend(relations)
-    ET.indent(root)
+    root.extend([*nodes, *ways, *relations])  # OSM order: nodes, ways, relations
+    tree = ET.ElementTree(root)
+    ET.indent(tree)
     path.parent.mkdir(parents=True, exist_ok=True)
-    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+    tree.write(path, encoding="utf-8", xml_declaration=True)
     return path

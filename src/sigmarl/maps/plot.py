@@ -45,7 +45,8 @@ def plot_map(roadmap: RoadMap, ax: Axes | None = None, show_ids: bool = False, r
         for r, color in zip(roadmap.routes, _route_colors(len(roadmap.routes)), strict=True):
             c = r.center[: r.n_points].numpy()
             ax.plot(c[:, 0], c[:, 1], color=color, lw=1.1, alpha=0.85, zorder=2, solid_capstyle="round")
-            # Arrow head at the end shows the driving direction.
+            if not r.is_loop:  # a dot where the route enters the map, an arrow head where it leaves
+                ax.plot(*c[0], "o", color=color, ms=3.0, zorder=3)
             ax.annotate(
                 "", xy=c[-1], xytext=c[-2], zorder=3,
                 arrowprops={"arrowstyle": "-|>", "color": color, "lw": 1.1, "mutation_scale": 9},

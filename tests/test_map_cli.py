@@ -1,0 +1,58 @@
+"""`sigmarl maps list|show` end to end: real configs, real PNG files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from sigmarl.cli import main
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+DATA = Path(__file__).parent / "data"
+
+
+def assert_png(path: Path) -> None:
+    data = path.read_bytes()
+    assert data[:8] == PNG_MAGIC and len(data) > 10_000  # a drawn map, not an empty canvas
+
+
+@pytest.mark.parametrize("name", ["cpm", "intersection", "on_ramp", "roundabout"])
+def test_show_writes_png(tmp_path, capsys, name):
+    out = tmp_path / f"{name}.png"
+    assert main(["maps", "show", name, "--out", str(out)]) == 0
+    assert_png(out)
+    assert str(out) in capsys.readouterr().out
+
+
+def test_show_osm_file_with_ids(tmp_path):
+    out = tmp_path / "l2.png"
+    assert main(["maps", "show", str(DATA / "lanelet2_two_way.osm"), "--out", str(out), "--ids"]) == 0
+    assert_png(out)
+
+
+def test_show_unknown_map_fails(capsys):
+    assert main(["maps", "show", "nope"]) != 0
+    err = capsys.readouterr().err
+    assert "unknown map 'nope'" in err and "Traceback" not in err
+
+
+def test_show_broken_osm_fails_with_file_name(tmp_path, capsys):
+    bad = tmp_path / "broken.osm"
+    bad.write_text("<osm><node id='1'")
+    assert main(["maps", "show", str(bad), "--out", str(tmp_path / "x.png")]) != 0
+    assert "broken.osm: not well-formed XML" in capsys.readouterr().err
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_list_prints_every_map(capsys):
+    assert main(["maps", "list"]) == 0
+    rows = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines()[1:]}
+    assert set(rows) == {"cpm", "cpm_intersection", "intersection", "on_ramp", "roundabout"}
+    # lanelets and routes columns
+    assert rows["cpm"][1:3] == ["104", "7"]
+    assert rows["cpm_intersection"][2] == "24"
+    assert rows["intersection"][1:3] == ["20", "12"]
+    assert rows["on_ramp"][1:3] == ["5", "3"]
+    assert rows["roundabout"][1:3] == ["24", "16"]
+
