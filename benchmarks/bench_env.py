@@ -107,7 +107,7 @@ def main() -> None:
             15,
             lambda: make_env(cfg, n_agents=15, mode="test", max_steps=1200, map_cfg=cpm),
         ),
-        "sigmarl (CPM intersection, train)*": (1024, 4, lambda: make_env(cfg, num_envs=1024)),
+        "sigmarl (intersection, 1024 envs)": (1024, 4, lambda: make_env(cfg, num_envs=1024)),
     }
     t_start = time.perf_counter()
     timers = {name: Timer(make()) for name, (_, _, make) in cases.items()}
