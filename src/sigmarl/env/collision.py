@@ -69,15 +69,20 @@ def nearest_on_polylines(points: torch.Tensor, lines: torch.Tensor) -> tuple[tor
     """Distance from points [..., P, 2] to polylines [..., L, W, 2] and the closest segment.
 
     Returns dist and segment index, both [..., L, P]. The lean form of
-    `geometry.point_polyline_distance` for the step's hot path: no padding masks and no
-    projected points (the windows it receives are always full).
+    `geometry.point_polyline_distance` for the step's hot path: no padding masks, no
+    projected points, and x and y kept apart (reductions over a last dimension of size 2
+    cost more than the arithmetic).
     """
-    a = lines[..., :-1, :].unsqueeze(-3)  # [..., L, 1, S, 2]
-    d = (lines[..., 1:, :] - lines[..., :-1, :]).unsqueeze(-3)
-    ap = points.unsqueeze(-2).unsqueeze(-4) - a  # [..., L, P, S, 2]
-    dd = (d * d).sum(-1)
+    px = points[..., 0].unsqueeze(-2).unsqueeze(-1)  # [..., 1, P, 1]
+    py = points[..., 1].unsqueeze(-2).unsqueeze(-1)
+    lx, ly = lines[..., 0], lines[..., 1]  # [..., L, W]
+    ax, ay = lx[..., :-1].unsqueeze(-2), ly[..., :-1].unsqueeze(-2)  # [..., L, 1, S]
+    dx = (lx[..., 1:] - lx[..., :-1]).unsqueeze(-2)
+    dy = (ly[..., 1:] - ly[..., :-1]).unsqueeze(-2)
+    apx, apy = px - ax, py - ay  # [..., L, P, S]
+    dd = dx * dx + dy * dy
     # Zero-length segments (window padding at a route's end) project onto their start.
-    t = ((ap * d).sum(-1) / torch.where(dd > 0, dd, torch.ones_like(dd))).clamp(0.0, 1.0)
-    diff = ap - t.unsqueeze(-1) * d
-    dist2, seg = (diff * diff).sum(-1).min(-1)
+    t = ((apx * dx + apy * dy) / torch.where(dd > 0, dd, torch.ones_like(dd))).clamp(0.0, 1.0)
+    ex, ey = apx - t * dx, apy - t * dy
+    dist2, seg = (ex * ex + ey * ey).min(-1)
     return dist2.sqrt(), seg
