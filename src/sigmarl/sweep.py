@@ -62,10 +62,6 @@ def run_job(cfg: DictConfig) -> str:
         return "failed"
 
 
-def _hydra_job(cfg: DictConfig) -> str:
-    return run_job(cfg)
-
-
 def sweep_overrides(user: Sequence[str], cores: int | None = None) -> list[str]:
     """The multirun's overrides: the six presets and seed 0 unless the user chose, plus
     launcher settings from the core count. `seeds=[0,1,2]` and `models=[M0,M4]` are
@@ -124,7 +120,7 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
     argv = sys.argv
     sys.argv = ["sigmarl-sweep", "--multirun", *overrides]
     try:
-        main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(_hydra_job)
+        main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
         main()
     finally:
         sys.argv = argv

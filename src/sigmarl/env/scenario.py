@@ -345,9 +345,3 @@ class TrafficScenario(BaseScenario):
             "speed": self.step_speed[:, i],
             "respawned": self.respawned[:, i].float(),
         }
-
-    def sync_render_state(self) -> None:
-        """Copy our state into VMAS' agent states (only needed for VMAS' own renderer)."""
-        for i, agent in enumerate(self.world.agents):
-            agent.state.pos = self.pos[:, i].clone()
-            agent.state.rot = self.heading[:, i : i + 1].clone()
