@@ -93,6 +93,7 @@ class PPOConfig:
     lmbda: float = 0.9
     entropy_coef: float = 1e-4
     normalize_advantage: bool = False
+    loss: str = "lean"  # lean: the PPO loss on plain tensors | torchrl: torchrl's ClipPPOLoss (same maths)
     checkpoint_every: int = 5
     stop_after: int = 0  # >0: stop (as if interrupted) once this many iterations are done
 

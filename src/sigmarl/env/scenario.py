@@ -84,6 +84,7 @@ class TrafficScenario(BaseScenario):
         self._side_sign = torch.tensor([1.0, -1.0], device=device)
         self._eye_big = torch.eye(self.n_agents, device=device) * 1e9
         self._alloc(batch_dim, device)
+        self.spawn_table = self._spawn_table()
         return world
 
     def seed(self, seed: int) -> None:
@@ -138,11 +139,12 @@ class TrafficScenario(BaseScenario):
             "respawned": self.respawned.unsqueeze(-1).float(),
         }
 
-    def _flush_resets(self) -> None:
+    def _flush_resets(self) -> torch.Tensor | None:
+        """Respawn every agent of the environments marked for a reset; returns where [E, A]."""
         envs = self.pending_reset
         if not envs.any():
-            return
-        place = envs.unsqueeze(-1).expand(-1, self.n_agents)
+            return None
+        place = envs.unsqueeze(-1).expand(-1, self.n_agents).clone()  # pending_reset is cleared below
         self._respawn(place, all_agents=True)
         zero = torch.zeros((), device=self.pos.device)
         for t in (self.steering, self.prev_steering):
@@ -152,6 +154,7 @@ class TrafficScenario(BaseScenario):
         self.rew[envs] = 0.0
         self.terminated[envs] = False
         self.pending_reset[:] = False
+        return place
 
     def _respawn(self, place: torch.Tensor, all_agents: bool = False) -> None:
         """New route, position, heading and speed for the agents where `place` is True."""
@@ -179,19 +182,16 @@ class TrafficScenario(BaseScenario):
         d = (pts - self.pos.unsqueeze(-2)).norm(dim=-1)
         self.index = idx.gather(-1, d.argmin(-1, keepdim=True)).squeeze(-1)
 
-    def _geometry(self) -> None:
-        """Everything observation, reward and info read, for all agents at once."""
+    def _ego_geometry(self, pos, heading, route, index) -> dict[str, torch.Tensor]:
+        """What observation, reward and collisions read of each agent's own pose, [E, A, ...]."""
         b = self.bank
-        self.corners = rect_corners(self.pos, self.heading, LENGTH, WIDTH)  # [E, A, 4, 2]
+        corners = rect_corners(pos, heading, LENGTH, WIDTH)  # [E, A, 4, 2]
         # One window on the center line and both dense corridor boundaries: [E, A, 3, W, 2].
-        lines = b.windows("lines", self.route, self.index, self._line_offsets)
-        probe = torch.cat([self.pos.unsqueeze(-2), self.corners], dim=-2)  # [E, A, 5, 2]
+        lines = b.windows("lines", route, index, self._line_offsets)
+        probe = torch.cat([pos.unsqueeze(-2), corners], dim=-2)  # [E, A, 5, 2]
         dist, seg = nearest_on_polylines(probe, lines)  # [E, A, 3, 5]
-        self.d_center = dist[..., CENTER, 0]
         # DB: min(center distance - half width, corner distances), per side.
         sides = dist[..., LEFT:, :]
-        self.d_side = torch.minimum(sides[..., 0] - WIDTH / 2, sides[..., 1:].min(-1).values)  # [E, A, 2]
-        self.ref_points = lines[..., CENTER, self._ref_slots, :]
         # Boundary collision: the box touches a boundary, or its center is already beyond
         # one (left boundary: center to its right is inside; right boundary: to its left).
         bnd = lines[..., LEFT:, :, :]  # [E, A, 2, W, 2]
@@ -199,20 +199,57 @@ class TrafficScenario(BaseScenario):
         gi = s[..., None, None].expand(*s.shape, 1, 2)
         a = bnd.gather(-2, gi).squeeze(-2)
         c = bnd.gather(-2, gi + 1).squeeze(-2)
-        rel = self.pos.unsqueeze(-2) - a
+        rel = pos.unsqueeze(-2) - a
         cross = (c - a)[..., 0] * rel[..., 1] - (c - a)[..., 1] * rel[..., 0]
         # Only trusted near the boundary: a far segment's line can put the center on either
         # side on a curve, and a vehicle (<= 0.04 m a step) cannot get far beyond unnoticed.
         outside = (cross * self._side_sign > 0) & (sides[..., 0] < 0.1)
-        touch = polyline_box_overlap(bnd, self.pos.unsqueeze(-2), self.heading.unsqueeze(-1), LENGTH, WIDTH)
-        self.side_hit = touch | outside  # [E, A, 2]
-        # Observed corridor points: 1 behind .. 3 ahead of the closest, per side: [E, A, 2, 5, 2].
-        self.side_points = b.windows("sides", self.route, self.index, self._side_offsets)
-        # Other agents.
+        touch = polyline_box_overlap(bnd, pos.unsqueeze(-2), heading.unsqueeze(-1), LENGTH, WIDTH)
+        return {
+            "corners": corners,
+            "d_center": dist[..., CENTER, 0],
+            "d_side": torch.minimum(sides[..., 0] - WIDTH / 2, sides[..., 1:].min(-1).values),  # [E, A, 2]
+            "ref_points": lines[..., CENTER, self._ref_slots, :],
+            "side_hit": touch | outside,  # [E, A, 2]
+            # Observed corridor points: 1 behind .. 3 ahead of the closest, per side: [E, A, 2, 5, 2].
+            "side_points": b.windows("sides", route, index, self._side_offsets),
+        }
+
+    def _geometry(self) -> None:
+        """Everything observation, reward and info read, for all agents at once."""
+        for name, value in self._ego_geometry(self.pos, self.heading, self.route, self.index).items():
+            setattr(self, name, value)
+        self._neighbour_geometry()
+
+    def _neighbour_geometry(self) -> None:
         self.distances = torch.cdist(self.pos, self.pos)
         k = min(self.flags.n_nearest, self.n_agents - 1)
         masked = self.distances + self._eye_big
         self.neighbours = masked.topk(k, dim=-1, largest=False, sorted=True).indices
+
+    def _spawn_table(self) -> dict[str, torch.Tensor]:
+        """Ego geometry of a vehicle standing on each center-line point, heading along the
+        route: [R, N, ...]. Spawns are such poses, so a respawn reads its geometry here
+        instead of recomputing it (a second geometry pass would cost as much as the step's)."""
+        b = self.bank
+        n = b.center.shape[1]
+        routes = torch.arange(b.n_routes, device=b.center.device)
+        index = b.center_index(routes, torch.arange(n, device=routes.device).expand(len(routes), n))
+        route = routes.unsqueeze(-1).expand_as(index)
+        pos = b.center[route, index]
+        return self._ego_geometry(pos, b.heading[route, index], route, index)
+
+    def _spawn_geometry(self, place: torch.Tensor) -> None:
+        """Geometry after the agents where `place` [E, A] were respawned (see `_spawn_table`)."""
+        everyone = bool(place.all())
+        for name, table in self.spawn_table.items():
+            fresh = table[self.route, self.index]
+            if everyone or not hasattr(self, name):
+                setattr(self, name, fresh)
+                continue
+            m = place.view(*place.shape, *(1,) * (fresh.dim() - 2))
+            setattr(self, name, torch.where(m, fresh, getattr(self, name)))
+        self._neighbour_geometry()
 
     def _collisions(self) -> None:
         self.agent_collision = pairwise_box_overlap(self.pos, self.heading, LENGTH, WIDTH).any(-1)
@@ -245,8 +282,9 @@ class TrafficScenario(BaseScenario):
 
     def _refresh(self) -> None:
         """Observation of the current state (after resets)."""
-        self._flush_resets()
-        self._geometry()
+        place = self._flush_resets()
+        if place is not None:
+            self._spawn_geometry(place)
         self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
         self._observe()
 
@@ -320,7 +358,7 @@ class TrafficScenario(BaseScenario):
             self.respawned = exited | collided
         if self.respawned.any():
             self._respawn(self.respawned)
-            self._geometry()
+            self._spawn_geometry(self.respawned)
         self._observe()
 
     def observation(self, agent: Agent) -> torch.Tensor:

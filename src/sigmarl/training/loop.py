@@ -30,6 +30,7 @@ from sigmarl.training.mappo import (
     update,
 )
 from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic
+from sigmarl.training.ppo_loss import LOSSES
 
 RUN_ID_FILE = "mlflow_run_id"
 CONFIG_FILE = "config.yaml"
@@ -75,6 +76,8 @@ def _check(cfg: DictConfig) -> None:
             f"ppo.minibatch_size={ppo.minibatch_size} exceeds ppo.frames_per_iteration="
             f"{ppo.frames_per_iteration}"
         )
+    if ppo.loss not in LOSSES:
+        raise SigmarlError(f"unknown ppo.loss {ppo.loss!r}; choose from {', '.join(LOSSES)}")
     if cfg.threads < 1:
         raise SigmarlError(f"threads must be positive, got {cfg.threads}")
 

@@ -16,45 +16,22 @@ from torchrl.collectors import Collector
 from torchrl.envs import EnvBase
 from torchrl.envs.utils import ExplorationType
 from torchrl.modules import ProbabilisticActor
-from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
-from sigmarl.training.networks import ACTION, OBS, VALUE
+from sigmarl.training.networks import VALUE
+from sigmarl.training.ppo_loss import (
+    ADVANTAGE,
+    DONE,
+    REWARD,
+    TERMINATED,
+    TERMS,
+    VALUE_TARGET,
+    LeanPPOLoss,
+    TorchrlPPOLoss,
+    make_loss,
+)
 
-REWARD = ("agents", "reward")
-DONE, TERMINATED = ("agents", "done"), ("agents", "terminated")
-ADVANTAGE, VALUE_TARGET = ("agents", "advantage"), ("agents", "value_target")
-LOG_PROB = ("agents", "action_log_prob")
-LOSS_KEYS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "clip_fraction", "kl_approx")
-# what the update needs from a rollout; dropping the rest makes minibatch indexing cheaper
-TRAIN_KEYS = [OBS, ACTION, LOG_PROB, ADVANTAGE, VALUE_TARGET]
-
-
-def make_loss(actor: ProbabilisticActor, critic: TensorDictModule, ppo: DictConfig) -> ClipPPOLoss:
-    loss = ClipPPOLoss(
-        actor,
-        critic,
-        clip_epsilon=ppo.clip_epsilon,
-        entropy_coeff=ppo.entropy_coef,
-        critic_coeff=1.0,
-        loss_critic_type="smooth_l1",
-        normalize_advantage=ppo.normalize_advantage,
-        log_explained_variance=False,
-        # the loss uses the modules' own parameters: no functional copies to swap in per call
-        functional=False,
-    )
-    loss.set_keys(
-        reward=REWARD,
-        action=ACTION,
-        sample_log_prob=LOG_PROB,
-        value=VALUE,
-        done=DONE,
-        terminated=TERMINATED,
-        advantage=ADVANTAGE,
-        value_target=VALUE_TARGET,
-    )
-    return loss
-
+__all__ = ["collect", "make_collector", "make_gae", "make_loss", "rollout_stats", "update"]
 
 def make_gae(critic: TensorDictModule, ppo: DictConfig) -> GAE:
     gae = GAE(gamma=ppo.gamma, lmbda=ppo.lmbda, value_network=critic, average_gae=False, time_dim=1)
@@ -139,27 +116,24 @@ def rollout_stats(data: TensorDictBase) -> dict[str, float]:
 
 def update(
     data: TensorDictBase,
-    loss: ClipPPOLoss,
+    loss: LeanPPOLoss | TorchrlPPOLoss,
     optimiser: torch.optim.Optimizer,
     ppo: DictConfig,
 ) -> dict[str, float]:
-    """`epochs` passes of shuffled minibatches over the rollout; returns the mean losses."""
-    flat = data.select(*TRAIN_KEYS).reshape(-1)
-    n = flat.shape[0]
+    """`epochs` passes of shuffled minibatches over the rollout; returns the mean loss terms."""
+    batch = loss.prepare(data)
+    n = data.numel()
     per_epoch = n // ppo.minibatch_size
     params = [p for group in optimiser.param_groups for p in group["params"]]
-    totals = torch.zeros(len(LOSS_KEYS), device=flat.device)
+    totals = torch.zeros(len(TERMS), device=data.device)
     for _ in range(ppo.epochs):
-        order = torch.randperm(n, device=flat.device)
+        order = torch.randperm(n, device=data.device)
         for b in range(per_epoch):
-            batch = flat[order[b * ppo.minibatch_size : (b + 1) * ppo.minibatch_size]]
-            out = loss(batch)
-            total = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
+            total, terms = loss(batch, order[b * ppo.minibatch_size : (b + 1) * ppo.minibatch_size])
             optimiser.zero_grad(set_to_none=True)
             total.backward()
             torch.nn.utils.clip_grad_norm_(params, ppo.max_grad_norm)
             optimiser.step()
-            # summed on the device: one host sync per iteration, not per step
-            totals += torch.stack([out[k].detach() for k in LOSS_KEYS])
+            totals += terms  # summed on the device: one host sync per iteration, not per step
     means = (totals / (ppo.epochs * per_epoch)).tolist()
-    return dict(zip(LOSS_KEYS, means, strict=True))
+    return dict(zip(TERMS, means, strict=True))

@@ -1,0 +1,166 @@
+"""The clipped-PPO minibatch loss, two implementations of the same maths.
+
+- `TorchrlPPOLoss` wraps torchrl's `ClipPPOLoss` (`ppo.loss=torchrl`).
+- `LeanPPOLoss` (`ppo.loss=lean`, the default) computes the same numbers on plain tensors
+  over the actor's and critic's own parameters. At the paper's sizes ClipPPOLoss costs
+  about 40% more than the maths (benchmarks/bench_training.py): per minibatch it indexes
+  TensorDicts, swaps MultiAgentMLP parameters into a module and inverts tanh to score the
+  stored actions. Here what does not depend on the parameters (pre-tanh actions and their
+  log-Jacobian) is computed once per iteration. tests/test_ppo_loss.py checks its losses
+  and gradients against ClipPPOLoss.
+
+Both take `prepare(data)` once per iteration, then `loss(batch, idx)` per minibatch, which
+returns the total loss to minimise and the detached terms named in `TERMS`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import torch
+import torch.nn.functional as F
+from omegaconf import DictConfig
+from tensordict import TensorDictBase
+from torch import nn
+from torchrl.modules import MultiAgentMLP, ProbabilisticActor
+from torchrl.objectives import ClipPPOLoss
+
+from sigmarl.training.networks import ACTION, OBS, VALUE
+
+REWARD = ("agents", "reward")
+DONE, TERMINATED = ("agents", "done"), ("agents", "terminated")
+ADVANTAGE, VALUE_TARGET = ("agents", "advantage"), ("agents", "value_target")
+LOG_PROB = ("agents", "action_log_prob")
+TERMS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "clip_fraction", "kl_approx")
+# what the update needs from a rollout
+TRAIN_KEYS = [OBS, ACTION, LOG_PROB, ADVANTAGE, VALUE_TARGET]
+LOSSES = ("lean", "torchrl")
+
+_HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
+
+
+class TorchrlPPOLoss:
+    """torchrl's ClipPPOLoss over TensorDict minibatches."""
+
+    def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: DictConfig):
+        self.loss = ClipPPOLoss(
+            actor,
+            critic,
+            clip_epsilon=ppo.clip_epsilon,
+            entropy_coeff=ppo.entropy_coef,
+            critic_coeff=1.0,
+            loss_critic_type="smooth_l1",
+            normalize_advantage=ppo.normalize_advantage,
+            log_explained_variance=False,
+            # the loss uses the modules' own parameters: no functional copies to swap in per call
+            functional=False,
+        )
+        self.loss.set_keys(
+            reward=REWARD, action=ACTION, sample_log_prob=LOG_PROB, value=VALUE, done=DONE,
+            terminated=TERMINATED, advantage=ADVANTAGE, value_target=VALUE_TARGET,
+        )
+
+    def prepare(self, data: TensorDictBase) -> TensorDictBase:
+        return data.select(*TRAIN_KEYS).reshape(-1)
+
+    def __call__(self, flat: TensorDictBase, idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        out = self.loss(flat[idx])
+        total = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
+        return total, torch.stack([out[k].detach() for k in TERMS])
+
+
+def plain_forward(net: MultiAgentMLP) -> Callable[[torch.Tensor], torch.Tensor]:
+    """A parameter-shared MultiAgentMLP as plain layer calls on its own Parameters (same
+    outputs, same gradients, without swapping its parameters into a module per call).
+    Networks it does not cover (one MLP per agent) are called as they are."""
+    layers: list = []
+    for name, module in net._empty_net.named_children():
+        if isinstance(module, nn.Linear):
+            layers.append((net.params[name, "weight"], net.params[name, "bias"]))
+        elif isinstance(module, (nn.Tanh, nn.ReLU, nn.ELU)):
+            layers.append(module)
+        else:
+            return net
+    if not net.share_params:
+        return net
+
+    def forward(x: torch.Tensor) -> torch.Tensor:
+        if net.centralized:
+            x = x.flatten(-2)  # [..., A, D] -> [..., A * D]
+        for layer in layers:
+            x = F.linear(x, *layer) if isinstance(layer, tuple) else layer(x)
+        if net.centralized:  # one value, shared by all agents
+            x = x.unsqueeze(-2).expand(*x.shape[:-1], net.n_agents, x.shape[-1])
+        return x
+
+    return forward
+
+
+def _log_jacobian(u: torch.Tensor, log_half: torch.Tensor) -> torch.Tensor:
+    """log |d(mid + half * tanh u)/du| summed over the action: log(1 - tanh^2 u) written
+    stably as 2 (log 2 - u - softplus(-2u))."""
+    return (log_half + 2 * (math.log(2) - u - F.softplus(-2 * u))).sum(-1)
+
+
+class LeanPPOLoss:
+    """Clipped PPO (objective, smooth-L1 critic, one-sample entropy of the tanh-Gaussian)."""
+
+    def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: DictConfig):
+        head = actor.module[0].module  # Sequential(MultiAgentMLP, NormalParamExtractor)
+        self.policy, self.scale_map = plain_forward(head[0]), head[1]
+        self.value = plain_forward(critic.module)
+        box = actor.module[1].distribution_kwargs
+        low, high = box["low"], box["high"]
+        self.mid, self.half = (high + low) / 2, (high - low) / 2
+        self.log_half = self.half.log()
+        self.clip = (math.log1p(-ppo.clip_epsilon), math.log1p(ppo.clip_epsilon))
+        self.entropy_coef = ppo.entropy_coef
+        self.normalize_advantage = ppo.normalize_advantage
+
+    def prepare(self, data: TensorDictBase) -> dict[str, torch.Tensor]:
+        """Flat [frames, agents, ...] tensors, and the pre-tanh actions with their log-Jacobian."""
+        flat = data.select(*TRAIN_KEYS).reshape(-1)
+        y = (flat.get(ACTION) - self.mid) / self.half
+        lim = 1.0 - torch.finfo(y.dtype).eps  # tanh saturates: score the largest finite preimage
+        u = y.clamp(-lim, lim).atanh()
+        return {
+            "obs": flat.get(OBS),
+            "u": u,
+            "log_jac": _log_jacobian(u, self.log_half),
+            "old_log_prob": flat.get(LOG_PROB),
+            "advantage": flat.get(ADVANTAGE),
+            "target": flat.get(VALUE_TARGET),
+        }
+
+    def __call__(self, batch: dict[str, torch.Tensor], idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        obs = batch["obs"][idx]
+        loc, scale = self.scale_map(self.policy(obs))
+        log_scale = scale.log()
+        z = (batch["u"][idx] - loc) / scale
+        log_prob = (-0.5 * z * z - log_scale - _HALF_LOG_2PI).sum(-1) - batch["log_jac"][idx]
+        log_weight = (log_prob - batch["old_log_prob"][idx]).unsqueeze(-1)
+        adv = batch["advantage"][idx]
+        if self.normalize_advantage:
+            adv = (adv - adv.mean()) / adv.std().clamp_min(1e-6)
+        clipped = log_weight.clamp(*self.clip)
+        gain = torch.minimum(log_weight.exp() * adv, clipped.exp() * adv)
+        loss_objective = -gain.mean()
+        # entropy: -log p of one reparameterised sample per agent (no closed form after tanh)
+        noise = torch.randn_like(loc)
+        u = loc + scale * noise
+        entropy = -((-0.5 * noise * noise - log_scale - _HALF_LOG_2PI).sum(-1) - _log_jacobian(u, self.log_half))
+        entropy = entropy.mean()
+        loss_entropy = -self.entropy_coef * entropy
+        loss_critic = F.smooth_l1_loss(self.value(obs), batch["target"][idx])
+        total = loss_objective + loss_critic + loss_entropy
+        with torch.no_grad():
+            terms = torch.stack([
+                loss_objective, loss_critic, loss_entropy, entropy,
+                (log_weight != clipped).float().mean(), -log_weight.mean(),
+            ])
+        return total, terms
+
+
+def make_loss(actor: ProbabilisticActor, critic: nn.Module, ppo: DictConfig) -> LeanPPOLoss | TorchrlPPOLoss:
+    return (TorchrlPPOLoss if ppo.loss == "torchrl" else LeanPPOLoss)(actor, critic, ppo)
