@@ -5,8 +5,8 @@ minibatches of 512). The floor is the optimisation alone written as a bare PyTor
 identical MLP shapes (same batch, same clipped-PPO/entropy/smooth-L1 maths, Adam, grad clip):
 the compute any implementation must pay. Target: full iteration <= 1.15 x floor.
 
-To keep the run short, optimisation (torchrl and floor) runs `--epochs` epochs and is scaled
-to the configured 60; collection and GAE run in full. Usage:
+To keep the run short, optimisation (ours and the floor, interleaved epoch by epoch) runs
+`--epochs` epochs and is scaled to the configured 60; collection and GAE run in full. Usage:
 
     python benchmarks/bench_training.py [--epochs 6] [--repeats 1] [--threads 1 2] [--compare-rollout]
         [overrides...]
@@ -24,7 +24,6 @@ import torch
 import torch.nn.functional as F
 from tensordict.nn import TensorDictModule
 from torch import nn
-from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.compose import compose_config
 from sigmarl.training.loop import build, learning_rate
@@ -40,55 +39,50 @@ def _mlp(n_in: int, hidden: list[int], n_out: int) -> nn.Sequential:
     return nn.Sequential(*layers, nn.Linear(n_in, n_out))
 
 
-def floor_seconds(
-    obs: torch.Tensor, high: torch.Tensor, hidden: list[int], ppo, steps: int
-) -> tuple[float, float]:
-    """(wall, cpu) seconds of `steps` optimiser steps of a hand-written MAPPO update.
+class Floor:
+    """A hand-written MAPPO update over identical MLP shapes, as lean as the maths allows:
+    everything that does not depend on the parameters (the pre-tanh actions and their
+    log-Jacobian) is computed once, outside the loop."""
 
-    As lean as the maths allows: everything that does not depend on the parameters (the
-    pre-tanh actions and their log-Jacobian) is computed once, outside the loop.
-    """
-    n, n_agents, d = obs.shape
-    actor, critic = _mlp(d, hidden, 4), _mlp(n_agents * d, hidden, 1)
-    params = [*actor.parameters(), *critic.parameters()]
-    opt = torch.optim.Adam(params, lr=ppo.lr)
-    u_act = torch.randn(n, n_agents, 2)  # pre-tanh actions; tanh(u) * high is the action
-    log_jac = _log_jac(u_act, high).sum(-1)
-    old_lp, adv = torch.randn(n, n_agents), torch.randn(n, n_agents, 1)
-    target = torch.randn(n, 1)  # one centralised value per frame, shared by the agents
-    shift = math.log(math.e - 1)  # softplus(0 + shift) = 1
-    half_log_2pi = 0.5 * math.log(2 * math.pi)
-    eps = ppo.clip_epsilon
+    def __init__(self, obs: torch.Tensor, high: torch.Tensor, hidden: list[int], ppo) -> None:
+        n, n_agents, d = obs.shape
+        self.obs, self.n, self.ppo = obs, n, ppo
+        self.actor, self.critic = _mlp(d, hidden, 4), _mlp(n_agents * d, hidden, 1)
+        self.params = [*self.actor.parameters(), *self.critic.parameters()]
+        self.opt = torch.optim.Adam(self.params, lr=ppo.lr)
+        self.high = high
+        self.u_act = torch.randn(n, n_agents, 2)  # pre-tanh actions; tanh(u) * high is the action
+        self.log_jac = _log_jac(self.u_act, high).sum(-1)
+        self.old_lp, self.adv = torch.randn(n, n_agents), torch.randn(n, n_agents, 1)
+        self.target = torch.randn(n, 1)  # one centralised value per frame, shared by the agents
+        for _ in range(3):  # warm-up
+            self.step(torch.randint(0, n, (ppo.minibatch_size,)))
 
-    def step(idx: torch.Tensor) -> None:
-        o = obs[idx]
-        loc, s = actor(o).chunk(2, -1)
-        scale = F.softplus(s + shift).clamp_min(1e-4)
-        z = (u_act[idx] - loc) / scale
-        lp = (-0.5 * z**2 - scale.log() - half_log_2pi).sum(-1) - log_jac[idx]
-        lw = (lp - old_lp[idx]).unsqueeze(-1)
-        a = adv[idx]
+    def step(self, idx: torch.Tensor) -> None:
+        ppo, eps = self.ppo, self.ppo.clip_epsilon
+        half_log_2pi = 0.5 * math.log(2 * math.pi)
+        o = self.obs[idx]
+        loc, s = self.actor(o).chunk(2, -1)
+        scale = F.softplus(s + math.log(math.e - 1)).clamp_min(1e-4)  # softplus(0 + shift) = 1
+        z = (self.u_act[idx] - loc) / scale
+        lp = (-0.5 * z**2 - scale.log() - half_log_2pi).sum(-1) - self.log_jac[idx]
+        lw = (lp - self.old_lp[idx]).unsqueeze(-1)
+        a = self.adv[idx]
         gain = torch.min(lw.exp() * a, lw.clamp(math.log1p(-eps), math.log1p(eps)).exp() * a)
         noise = torch.randn_like(loc)  # one-sample entropy estimate of the tanh-Gaussian
         u = loc + scale * noise
-        entropy = -((-0.5 * noise**2 - scale.log() - half_log_2pi) - _log_jac(u, high)).sum(-1)
-        value = critic(o.flatten(-2))
-        loss = -gain.mean() + F.smooth_l1_loss(value, target[idx]) - ppo.entropy_coef * entropy.mean()
-        opt.zero_grad(set_to_none=True)
+        entropy = -((-0.5 * noise**2 - scale.log() - half_log_2pi) - _log_jac(u, self.high)).sum(-1)
+        value = self.critic(o.flatten(-2))
+        loss = -gain.mean() + F.smooth_l1_loss(value, self.target[idx]) - ppo.entropy_coef * entropy.mean()
+        self.opt.zero_grad(set_to_none=True)
         loss.backward()
-        torch.nn.utils.clip_grad_norm_(params, ppo.max_grad_norm)
-        opt.step()
+        torch.nn.utils.clip_grad_norm_(self.params, ppo.max_grad_norm)
+        self.opt.step()
 
-    for _ in range(3):  # warm-up
-        step(torch.randint(0, n, (ppo.minibatch_size,)))
-    per_epoch = n // ppo.minibatch_size
-    w, c = time.perf_counter(), time.process_time()
-    for i in range(steps):
-        if i % per_epoch == 0:
-            order = torch.randperm(n)
-        j = i % per_epoch
-        step(order[j * ppo.minibatch_size : (j + 1) * ppo.minibatch_size])
-    return time.perf_counter() - w, time.process_time() - c
+    def epoch(self) -> None:
+        order, m = torch.randperm(self.n), self.ppo.minibatch_size
+        for j in range(self.n // m):
+            self.step(order[j * m : (j + 1) * m])
 
 
 def _log_jac(u: torch.Tensor, high: torch.Tensor) -> torch.Tensor:
@@ -120,15 +114,18 @@ class _Clock:
 
 
 def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, tuple[float, float]]:
-    """Median (wall, cpu) seconds per iteration of each phase, optimisation scaled to ppo.epochs."""
+    """Median (wall, cpu) seconds per iteration of each phase, optimisation scaled to ppo.epochs.
+
+    Optimisation and floor run interleaved, one epoch each in turn, so that load from other
+    processes on the machine hits both alike.
+    """
     ppo = cfg.ppo
     parts = build(cfg, torch.device("cpu"))
-    env, actor = parts.env, parts.actor
+    env = parts.env
     steps = ppo.frames_per_iteration // ppo.num_envs
-    short = cfg.ppo.copy()
-    short.epochs = epochs
+    one = cfg.ppo.copy()
+    one.epochs = 1
     scale = ppo.epochs / epochs
-    opt_steps = epochs * (ppo.frames_per_iteration // ppo.minibatch_size)
     for g in parts.optimiser.param_groups:
         g["lr"] = learning_rate(ppo, 0)
     batches = iter(parts.collector)
@@ -150,23 +147,28 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
                         break_when_any_done=False)
         with _Clock() as adv, torch.no_grad():
             parts.gae(data)
-        with _Clock() as opt:
-            update(data, parts.loss, parts.optimiser, short)
         obs = data["agents", "observation"].reshape(-1, *data["agents", "observation"].shape[-2:])
-        floor = _Clock()
-        floor.wall, floor.cpu = floor_seconds(
-            obs, parts.dims["action_high"], list(cfg.network.hidden), ppo, opt_steps
-        )
+        floor = Floor(obs, parts.dims["action_high"], list(cfg.network.hidden), ppo)
+        update(data, parts.loss, parts.optimiser, one)  # warm-up
+        opt, bare = _Clock(), _Clock()
+        opt.wall = opt.cpu = bare.wall = bare.cpu = 0.0
+        for _ in range(epochs):
+            with _Clock() as c:
+                update(data, parts.loss, parts.optimiser, one)
+            opt.wall, opt.cpu = opt.wall + c.wall, opt.cpu + c.cpu
+            with _Clock() as c:
+                floor.epoch()
+            bare.wall, bare.cpu = bare.wall + c.wall, bare.cpu + c.cpu
         add("env_only", env_only)
         add("collect", col)
         add("advantage", adv)
         add("optimise", opt, scale)
-        add("floor", floor, scale)
+        add("floor", bare, scale)
     if compare_rollout:  # the alternative to the collector: EnvBase.rollout (stacks at the end)
         for r in range(repeats):
             env.set_seed(r)
-            with _Clock() as c, torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
-                env.rollout(steps, actor, auto_reset=True, break_when_any_done=False)
+            with _Clock() as c, torch.no_grad():
+                env.rollout(steps, parts.collector.policy, auto_reset=True, break_when_any_done=False)
             add("collect_rollout", c)
     parts.close()
     return {k: tuple(statistics.median(x[i] for x in v) for i in (0, 1)) for k, v in rows.items()}

@@ -3,13 +3,17 @@ gradients, on a real rollout batch of the training environment."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 import torch
+from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
 from sigmarl.training.loop import build, train
 from sigmarl.training.mappo import collect
+from sigmarl.training.networks import ACTION, LOG_PROB, OBS, PREIMAGE, make_sampler
 from sigmarl.training.ppo_loss import TERMS, LeanPPOLoss, TorchrlPPOLoss
 
 
@@ -59,9 +63,9 @@ def test_lean_loss_equals_clip_ppo_loss(setup) -> None:
         torch.testing.assert_close(g_l, g_r, rtol=1e-3, atol=1e-6)
 
 
-def test_lean_loss_scores_the_collected_actions_like_the_actor(setup) -> None:
-    """Before any update the ratio is 1 for actions away from saturation: the pre-tanh actions
-    and log-Jacobians recovered once per iteration score exactly what the actor sampled."""
+def test_lean_loss_scores_the_collected_actions_like_the_sampler(setup) -> None:
+    """Before any update the ratio is 1: from the stored pre-tanh sample for every action,
+    and from the inverted tanh (rollouts without it) for actions away from saturation."""
     cfg, parts, _ = setup
     fresh = build(cfg, torch.device("cpu"))
     try:
@@ -69,15 +73,18 @@ def test_lean_loss_scores_the_collected_actions_like_the_actor(setup) -> None:
         with torch.no_grad():
             fresh.gae(data)
         lean = LeanPPOLoss(fresh.actor, fresh.critic, cfg.ppo)
-        batch = lean.prepare(data)
-        high = fresh.dims["action_high"]
-        inside = (data["agents", "action"].reshape(-1, *batch["u"].shape[1:]).abs() < 0.999 * high).all(-1)
-        with torch.no_grad():
-            loc, scale = lean.scale_map(lean.policy(batch["obs"]))
-            z = (batch["u"] - loc) / scale
-            lp = (-0.5 * z * z - scale.log() - 0.5 * torch.log(torch.tensor(2 * torch.pi))).sum(-1) - batch["log_jac"]
-        assert inside.float().mean() > 0.5
-        torch.testing.assert_close(lp[inside], batch["old_log_prob"][inside], rtol=0, atol=1e-3)
+        for rollout in (data, data.exclude(PREIMAGE)):
+            batch = lean.prepare(rollout)
+            with torch.no_grad():
+                loc, scale = lean.head.loc_scale(batch["obs"])
+                z = (batch["u"] - loc) / scale
+                lp = (-0.5 * z * z - scale.log() - 0.5 * math.log(2 * math.pi)).sum(-1) - batch["log_jac"]
+            keep = torch.ones_like(lp, dtype=torch.bool)
+            if PREIMAGE not in rollout.keys(True):
+                high = fresh.dims["action_high"]
+                keep = (rollout[ACTION].reshape(*lp.shape, -1).abs() < 0.999 * high).all(-1)
+                assert keep.float().mean() > 0.5
+            torch.testing.assert_close(lp[keep], batch["old_log_prob"][keep], rtol=0, atol=1e-3)
     finally:
         fresh.close()
 
@@ -86,3 +93,20 @@ def test_unknown_loss_is_rejected(tmp_path) -> None:
     cfg = compose_config(["tracking.enabled=false", "ppo=smoke", "ppo.loss=clipped", f"run_dir={tmp_path}"])
     with pytest.raises(SigmarlError, match="ppo.loss"):
         train(cfg)
+
+
+def test_sampler_draws_what_the_probabilistic_actor_draws(setup) -> None:
+    """Same seed, same observations: the collection sampler returns the ProbabilisticActor's
+    actions and log-probabilities (torchrl's TanhNormal), and its pre-tanh sample maps onto them."""
+    _, parts, data = setup
+    obs = data[:, :5].reshape(-1).select(OBS)
+    torch.manual_seed(3)
+    with set_exploration_type(ExplorationType.RANDOM):
+        ref = parts.actor(obs.clone())
+    torch.manual_seed(3)
+    ours = make_sampler(parts.actor)(obs.clone())
+    torch.testing.assert_close(ours[ACTION], ref[ACTION], rtol=0, atol=1e-6)
+    torch.testing.assert_close(ours[LOG_PROB], ref[LOG_PROB], rtol=1e-5, atol=1e-4)
+    high = parts.dims["action_high"]
+    torch.testing.assert_close(ours[PREIMAGE].tanh() * high, ours[ACTION], rtol=0, atol=1e-6)
+    assert ours[ACTION].std() > 0.05  # a stochastic policy, not the mean

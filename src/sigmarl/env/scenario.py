@@ -84,6 +84,8 @@ class TrafficScenario(BaseScenario):
         self._side_sign = torch.tensor([1.0, -1.0], device=device)
         self._eye_big = torch.eye(self.n_agents, device=device) * 1e9
         self._alloc(batch_dim, device)
+        self._line_table = self.bank.window_table("lines", self._line_offsets)
+        self._side_table = self.bank.window_table("sides", self._side_offsets)
         self.spawn_table = self._spawn_table()
         return world
 
@@ -187,7 +189,8 @@ class TrafficScenario(BaseScenario):
         b = self.bank
         corners = rect_corners(pos, heading, LENGTH, WIDTH)  # [E, A, 4, 2]
         # One window on the center line and both dense corridor boundaries: [E, A, 3, W, 2].
-        lines = b.windows("lines", route, index, self._line_offsets)
+        rows = b.row(route, index)
+        lines = self._line_table[rows]
         probe = torch.cat([pos.unsqueeze(-2), corners], dim=-2)  # [E, A, 5, 2]
         dist, seg = nearest_on_polylines(probe, lines)  # [E, A, 3, 5]
         # DB: min(center distance - half width, corner distances), per side.
@@ -212,7 +215,7 @@ class TrafficScenario(BaseScenario):
             "ref_points": lines[..., CENTER, self._ref_slots, :],
             "side_hit": touch | outside,  # [E, A, 2]
             # Observed corridor points: 1 behind .. 3 ahead of the closest, per side: [E, A, 2, 5, 2].
-            "side_points": b.windows("sides", route, index, self._side_offsets),
+            "side_points": self._side_table[rows],
         }
 
     def _geometry(self) -> None:

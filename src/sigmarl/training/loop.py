@@ -29,7 +29,7 @@ from sigmarl.training.mappo import (
     rollout_stats,
     update,
 )
-from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic
+from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic, make_sampler
 from sigmarl.training.ppo_loss import LOSSES
 
 RUN_ID_FILE = "mlflow_run_id"
@@ -155,7 +155,7 @@ def build(cfg: DictConfig, device: torch.device) -> Parts:
                        dims["action_high"], device)
     critic = make_critic(cfg.network, dims["obs_dim"], dims["n_agents"], device)
     optimiser = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=cfg.ppo.lr)
-    collector = make_collector(env, actor, cfg.ppo.frames_per_iteration, device)
+    collector = make_collector(env, make_sampler(actor), cfg.ppo.frames_per_iteration, device)
     return Parts(env, actor, critic, make_loss(actor, critic, cfg.ppo), make_gae(critic, cfg.ppo),
                  optimiser, dims, collector)
 

@@ -15,7 +15,6 @@ from tensordict.nn import TensorDictModule
 from torchrl.collectors import Collector
 from torchrl.envs import EnvBase
 from torchrl.envs.utils import ExplorationType
-from torchrl.modules import ProbabilisticActor
 from torchrl.objectives.value import GAE
 
 from sigmarl.training.networks import VALUE
@@ -47,7 +46,7 @@ def make_gae(critic: TensorDictModule, ppo: DictConfig) -> GAE:
 
 
 def make_collector(
-    env: EnvBase, actor: ProbabilisticActor, frames_per_batch: int, device: torch.device
+    env: EnvBase, policy: TensorDictModule, frames_per_batch: int, device: torch.device
 ) -> Collector:
     """torchrl's collector, resetting every environment at the start of each batch.
 
@@ -56,13 +55,14 @@ def make_collector(
     """
     return Collector(
         env,
-        actor,
+        policy,
         frames_per_batch=frames_per_batch,
         total_frames=-1,
         reset_at_each_iter=True,
         exploration_type=ExplorationType.RANDOM,
         device=device,
         auto_register_policy_transforms=False,  # a feed-forward policy needs no InitTracker
+        trust_policy=True,  # the sampler reads the actor's parameters, already on `device`
     )
 
 

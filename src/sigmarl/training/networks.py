@@ -7,7 +7,11 @@ squashed by tanh into the action box. Critic: one centralised MLP over all agent
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
 import torch
+import torch.nn.functional as F
 from omegaconf import DictConfig
 from tensordict.nn import NormalParamExtractor, TensorDictModule
 from torch import nn
@@ -15,6 +19,8 @@ from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
+LOG_PROB = ("agents", "action_log_prob")
+PREIMAGE = ("agents", "action_preimage")  # the Gaussian sample before tanh
 LOC, SCALE = ("agents", "loc"), ("agents", "scale")
 VALUE = ("agents", "state_value")
 
@@ -88,3 +94,88 @@ def make_critic(
         activation_class=_activation(net.activation),
     )
     return TensorDictModule(mlp, in_keys=[OBS], out_keys=[VALUE])
+
+
+def plain_forward(net: MultiAgentMLP) -> Callable[[torch.Tensor], torch.Tensor]:
+    """A parameter-shared MultiAgentMLP as plain layer calls on its own Parameters: the same
+    outputs and gradients, without MultiAgentMLP swapping its parameters into a module on
+    every call. Networks it does not cover (one MLP per agent) are returned as they are."""
+    layers: list = []
+    for name, module in net._empty_net.named_children():
+        if isinstance(module, nn.Linear):
+            layers.append((net.params[name, "weight"], net.params[name, "bias"]))
+        elif isinstance(module, tuple(_ACTIVATIONS.values())):
+            layers.append(module)
+        else:
+            return net
+    if not net.share_params:
+        return net
+
+    def forward(x: torch.Tensor) -> torch.Tensor:
+        if net.centralized:
+            x = x.flatten(-2)  # [..., A, D] -> [..., A * D]
+        for layer in layers:
+            x = F.linear(x, *layer) if isinstance(layer, tuple) else layer(x)
+        if net.centralized:  # one value, shared by all agents
+            x = x.unsqueeze(-2).expand(*x.shape[:-1], net.n_agents, x.shape[-1])
+        return x
+
+    return forward
+
+
+HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
+
+
+def gaussian_log_prob(z: torch.Tensor, log_scale: torch.Tensor) -> torch.Tensor:
+    """log N(loc + scale z; loc, scale), summed over the action."""
+    return (-0.5 * z * z - log_scale - HALF_LOG_2PI).sum(-1)
+
+
+def tanh_log_jacobian(u: torch.Tensor, log_half: torch.Tensor) -> torch.Tensor:
+    """log |d(mid + half tanh u)/du|, summed over the action; log(1 - tanh^2 u) written stably
+    as 2 (log 2 - u - softplus(-2u)), as torch's TanhTransform does."""
+    return (log_half + 2 * (math.log(2) - u - F.softplus(-2 * u))).sum(-1)
+
+
+class PolicyHead:
+    """The actor's pieces as plain tensor functions: (loc, scale) of the Gaussian and the box."""
+
+    def __init__(self, actor: ProbabilisticActor):
+        head = actor.module[0].module  # Sequential(MultiAgentMLP, NormalParamExtractor)
+        self.net, self.scale_map = plain_forward(head[0]), head[1]
+        box = actor.module[1].distribution_kwargs
+        low, high = box["low"], box["high"]
+        self.mid, self.half = (high + low) / 2, (high - low) / 2
+        self.log_half = self.half.log()
+        # torchrl's TanhNormal keeps tanh inside +-(1 - resolution)
+        self.tanh_limit = 1.0 - torch.finfo(self.half.dtype).resolution
+
+    def loc_scale(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.scale_map(self.net(obs))
+
+
+class TanhNormalSampler(nn.Module):
+    """The actor's exploration policy for collecting rollouts, as plain tensor maths.
+
+    The same distribution as the ProbabilisticActor's TanhNormal, drawn the same way (one
+    `torch.normal(loc, scale)`, so the same seed gives the same actions), at a quarter of its
+    cost per step. It also returns the pre-tanh sample, so that the PPO loss can score the
+    action exactly instead of inverting a saturated tanh. Always samples: it is only used to
+    collect training rollouts (evaluation uses the actor itself).
+    """
+
+    def __init__(self, actor: ProbabilisticActor):
+        super().__init__()
+        self.head = PolicyHead(actor)
+
+    def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        h = self.head
+        loc, scale = h.loc_scale(obs)
+        u = torch.normal(loc, scale)
+        action = h.mid + h.half * u.tanh().clamp(-h.tanh_limit, h.tanh_limit)
+        log_prob = gaussian_log_prob((u - loc) / scale, scale.log()) - tanh_log_jacobian(u, h.log_half)
+        return action, log_prob, u
+
+
+def make_sampler(actor: ProbabilisticActor) -> TensorDictModule:
+    return TensorDictModule(TanhNormalSampler(actor), in_keys=[OBS], out_keys=[ACTION, LOG_PROB, PREIMAGE])

@@ -16,28 +16,34 @@ returns the total loss to minimise and the detached terms named in `TERMS`.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import torch
 import torch.nn.functional as F
 from omegaconf import DictConfig
 from tensordict import TensorDictBase
 from torch import nn
-from torchrl.modules import MultiAgentMLP, ProbabilisticActor
+from torchrl.modules import ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss
 
-from sigmarl.training.networks import ACTION, OBS, VALUE
+from sigmarl.training.networks import (
+    ACTION,
+    LOG_PROB,
+    OBS,
+    PREIMAGE,
+    VALUE,
+    PolicyHead,
+    gaussian_log_prob,
+    plain_forward,
+    tanh_log_jacobian,
+)
 
 REWARD = ("agents", "reward")
 DONE, TERMINATED = ("agents", "done"), ("agents", "terminated")
 ADVANTAGE, VALUE_TARGET = ("agents", "advantage"), ("agents", "value_target")
-LOG_PROB = ("agents", "action_log_prob")
 TERMS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "clip_fraction", "kl_approx")
 # what the update needs from a rollout
 TRAIN_KEYS = [OBS, ACTION, LOG_PROB, ADVANTAGE, VALUE_TARGET]
 LOSSES = ("lean", "torchrl")
-
-_HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
 
 
 class TorchrlPPOLoss:
@@ -70,64 +76,28 @@ class TorchrlPPOLoss:
         return total, torch.stack([out[k].detach() for k in TERMS])
 
 
-def plain_forward(net: MultiAgentMLP) -> Callable[[torch.Tensor], torch.Tensor]:
-    """A parameter-shared MultiAgentMLP as plain layer calls on its own Parameters (same
-    outputs, same gradients, without swapping its parameters into a module per call).
-    Networks it does not cover (one MLP per agent) are called as they are."""
-    layers: list = []
-    for name, module in net._empty_net.named_children():
-        if isinstance(module, nn.Linear):
-            layers.append((net.params[name, "weight"], net.params[name, "bias"]))
-        elif isinstance(module, (nn.Tanh, nn.ReLU, nn.ELU)):
-            layers.append(module)
-        else:
-            return net
-    if not net.share_params:
-        return net
-
-    def forward(x: torch.Tensor) -> torch.Tensor:
-        if net.centralized:
-            x = x.flatten(-2)  # [..., A, D] -> [..., A * D]
-        for layer in layers:
-            x = F.linear(x, *layer) if isinstance(layer, tuple) else layer(x)
-        if net.centralized:  # one value, shared by all agents
-            x = x.unsqueeze(-2).expand(*x.shape[:-1], net.n_agents, x.shape[-1])
-        return x
-
-    return forward
-
-
-def _log_jacobian(u: torch.Tensor, log_half: torch.Tensor) -> torch.Tensor:
-    """log |d(mid + half * tanh u)/du| summed over the action: log(1 - tanh^2 u) written
-    stably as 2 (log 2 - u - softplus(-2u))."""
-    return (log_half + 2 * (math.log(2) - u - F.softplus(-2 * u))).sum(-1)
-
-
 class LeanPPOLoss:
     """Clipped PPO (objective, smooth-L1 critic, one-sample entropy of the tanh-Gaussian)."""
 
     def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: DictConfig):
-        head = actor.module[0].module  # Sequential(MultiAgentMLP, NormalParamExtractor)
-        self.policy, self.scale_map = plain_forward(head[0]), head[1]
+        self.head = PolicyHead(actor)
         self.value = plain_forward(critic.module)
-        box = actor.module[1].distribution_kwargs
-        low, high = box["low"], box["high"]
-        self.mid, self.half = (high + low) / 2, (high - low) / 2
-        self.log_half = self.half.log()
         self.clip = (math.log1p(-ppo.clip_epsilon), math.log1p(ppo.clip_epsilon))
         self.entropy_coef = ppo.entropy_coef
         self.normalize_advantage = ppo.normalize_advantage
 
     def prepare(self, data: TensorDictBase) -> dict[str, torch.Tensor]:
-        """Flat [frames, agents, ...] tensors, and the pre-tanh actions with their log-Jacobian."""
-        flat = data.select(*TRAIN_KEYS).reshape(-1)
-        y = (flat.get(ACTION) - self.mid) / self.half
-        lim = 1.0 - torch.finfo(y.dtype).eps  # tanh saturates: score the largest finite preimage
-        u = y.clamp(-lim, lim).atanh()
+        """Flat [frames, agents, ...] tensors, with the pre-tanh actions and their log-Jacobian."""
+        flat = data.select(*TRAIN_KEYS, PREIMAGE, strict=False).reshape(-1)
+        h = self.head
+        u = flat.get(PREIMAGE, None)
+        if u is None:  # collected by the ProbabilisticActor: invert the squashing as torchrl does
+            y = (flat.get(ACTION) - h.mid) / h.half
+            u = y.clamp(-h.tanh_limit, h.tanh_limit).atanh()
         return {
             "obs": flat.get(OBS),
             "u": u,
-            "log_jac": _log_jacobian(u, self.log_half),
+            "log_jac": tanh_log_jacobian(u, h.log_half),
             "old_log_prob": flat.get(LOG_PROB),
             "advantage": flat.get(ADVANTAGE),
             "target": flat.get(VALUE_TARGET),
@@ -135,10 +105,9 @@ class LeanPPOLoss:
 
     def __call__(self, batch: dict[str, torch.Tensor], idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         obs = batch["obs"][idx]
-        loc, scale = self.scale_map(self.policy(obs))
+        loc, scale = self.head.loc_scale(obs)
         log_scale = scale.log()
-        z = (batch["u"][idx] - loc) / scale
-        log_prob = (-0.5 * z * z - log_scale - _HALF_LOG_2PI).sum(-1) - batch["log_jac"][idx]
+        log_prob = gaussian_log_prob((batch["u"][idx] - loc) / scale, log_scale) - batch["log_jac"][idx]
         log_weight = (log_prob - batch["old_log_prob"][idx]).unsqueeze(-1)
         adv = batch["advantage"][idx]
         if self.normalize_advantage:
@@ -149,8 +118,7 @@ class LeanPPOLoss:
         # entropy: -log p of one reparameterised sample per agent (no closed form after tanh)
         noise = torch.randn_like(loc)
         u = loc + scale * noise
-        entropy = -((-0.5 * noise * noise - log_scale - _HALF_LOG_2PI).sum(-1) - _log_jacobian(u, self.log_half))
-        entropy = entropy.mean()
+        entropy = -(gaussian_log_prob(noise, log_scale) - tanh_log_jacobian(u, self.head.log_half)).mean()
         loss_entropy = -self.entropy_coef * entropy
         loss_critic = F.smooth_l1_loss(self.value(obs), batch["target"][idx])
         total = loss_objective + loss_critic + loss_entropy
