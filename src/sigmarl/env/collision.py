@@ -66,23 +66,34 @@ def polyline_box_overlap(
 
 
 def nearest_on_polylines(points: torch.Tensor, lines: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Distance from points [..., P, 2] to polylines [..., L, W, 2] and the closest segment.
+    """Distance from points [..., P, 2] to polylines [..., L, W, 2] and the closest segment,
+    both [..., L, P]. The step uses `nearest_on_segments` on a table built once per map."""
+    return nearest_on_segments(points, segment_table(lines))
 
-    Returns dist and segment index, both [..., L, P]. The lean form of
-    `geometry.point_polyline_distance` for the step's hot path: no padding masks, no
-    projected points, and x and y kept apart (reductions over a last dimension of size 2
-    cost more than the arithmetic).
+
+def segment_table(lines: torch.Tensor) -> torch.Tensor:
+    """What `nearest_on_segments` needs of polylines [..., L, W, 2], precomputed once per map:
+    [..., 5, L, W - 1] = segment start x, start y, dx, dy and 1 / |d|^2 (0 for zero-length
+    segments, which then project onto their start)."""
+    a, d = lines[..., :-1, :], lines[..., 1:, :] - lines[..., :-1, :]
+    dd = (d * d).sum(-1)
+    inv = torch.where(dd > 0, 1.0 / torch.where(dd > 0, dd, torch.ones_like(dd)), torch.zeros_like(dd))
+    return torch.stack([a[..., 0], a[..., 1], d[..., 0], d[..., 1], inv], dim=-3).contiguous()
+
+
+def nearest_on_segments(points: torch.Tensor, table: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Distance from points [..., P, 2] to the polylines of a `segment_table` [..., 5, L, S],
+    and the closest segment: both [..., L, P].
+
+    The lean form of `geometry.point_polyline_distance` for the step's hot path: no padding
+    masks, no projected points, and x and y kept apart (reductions over a last dimension of
+    size 2 cost more than the arithmetic).
     """
     px = points[..., 0].unsqueeze(-2).unsqueeze(-1)  # [..., 1, P, 1]
     py = points[..., 1].unsqueeze(-2).unsqueeze(-1)
-    lx, ly = lines[..., 0], lines[..., 1]  # [..., L, W]
-    ax, ay = lx[..., :-1].unsqueeze(-2), ly[..., :-1].unsqueeze(-2)  # [..., L, 1, S]
-    dx = (lx[..., 1:] - lx[..., :-1]).unsqueeze(-2)
-    dy = (ly[..., 1:] - ly[..., :-1]).unsqueeze(-2)
+    ax, ay, dx, dy, inv = (t.unsqueeze(-2) for t in table.unbind(-3))  # [..., L, 1, S]
     apx, apy = px - ax, py - ay  # [..., L, P, S]
-    dd = dx * dx + dy * dy
-    # Zero-length segments (window padding at a route's end) project onto their start.
-    t = ((apx * dx + apy * dy) / torch.where(dd > 0, dd, torch.ones_like(dd))).clamp(0.0, 1.0)
+    t = ((apx * dx + apy * dy) * inv).clamp(0.0, 1.0)
     ex, ey = apx - t * dx, apy - t * dy
     dist2, seg = (ex * ex + ey * ey).min(-1)
     return dist2.sqrt(), seg

@@ -30,6 +30,9 @@ class TrafficEnv(VmasEnv):
         # Cached: `num_envs` is forwarded to VMAS through torchrl's slow __getattr__ (~0.3 ms).
         self._n_envs = int(self.batch_size[0])
         self._steps = torch.zeros(self._n_envs, dtype=torch.long, device=self.device)
+        # the specs above were built from VMAS' per-agent infos; from now on _output reads the
+        # scenario's batched infos, so VMAS need not slice and clone them agent by agent
+        self._env.scenario.per_agent_infos = False
 
     def _make_specs(self, env) -> None:
         super()._make_specs(env)

@@ -16,7 +16,12 @@ import torch
 from vmas.simulator.core import Agent, Box, World
 from vmas.simulator.scenario import BaseScenario
 
-from sigmarl.env.collision import nearest_on_polylines, pairwise_box_overlap, polyline_box_overlap
+from sigmarl.env.collision import (
+    nearest_on_segments,
+    pairwise_box_overlap,
+    polyline_box_overlap,
+    segment_table,
+)
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import rect_corners
 from sigmarl.env.observation import ObsFlags, ObsInputs, build_observation
@@ -84,8 +89,10 @@ class TrafficScenario(BaseScenario):
         self._side_sign = torch.tensor([1.0, -1.0], device=device)
         self._eye_big = torch.eye(self.n_agents, device=device) * 1e9
         self._alloc(batch_dim, device)
+        self.per_agent_infos = True
         self._line_table = self.bank.window_table("lines", self._line_offsets)
         self._side_table = self.bank.window_table("sides", self._side_offsets)
+        self._segment_table = segment_table(self._line_table)
         self.spawn_table = self._spawn_table()
         return world
 
@@ -192,7 +199,7 @@ class TrafficScenario(BaseScenario):
         rows = b.row(route, index)
         lines = self._line_table[rows]
         probe = torch.cat([pos.unsqueeze(-2), corners], dim=-2)  # [E, A, 5, 2]
-        dist, seg = nearest_on_polylines(probe, lines)  # [E, A, 3, 5]
+        dist, seg = nearest_on_segments(probe, self._segment_table[rows])  # [E, A, 3, 5]
         # DB: min(center distance - half width, corner distances), per side.
         sides = dist[..., LEFT:, :]
         # Boundary collision: the box touches a boundary, or its center is already beyond
@@ -378,6 +385,8 @@ class TrafficScenario(BaseScenario):
         return self.terminated
 
     def info(self, agent: Agent) -> dict[str, torch.Tensor]:
+        if not self.per_agent_infos:  # TrafficEnv reads `infos()` for all agents at once
+            return {}
         i = self._agent_index[agent.name]
         return {
             "agent_collision": self.agent_collision[:, i].float(),
