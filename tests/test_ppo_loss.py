@@ -17,11 +17,12 @@ from sigmarl.training.networks import ACTION, LOG_PROB, OBS, PREIMAGE, make_samp
 from sigmarl.training.ppo_loss import TERMS, LeanPPOLoss, TorchrlPPOLoss
 
 
-@pytest.fixture(scope="module")
-def setup():
+@pytest.fixture(scope="module", params=[True, False], ids=["shared_value", "value_per_agent"])
+def setup(request):
     cfg = compose_config([
         "tracking.enabled=false", "ppo=smoke", "ppo.num_envs=4", "ppo.frames_per_iteration=128",
         "ppo.entropy_coef=0.01", "network.hidden=[32,32]",
+        f"network.shared_critic_value={request.param}",
     ])
     torch.manual_seed(0)
     parts = build(cfg, torch.device("cpu"))
@@ -110,3 +111,16 @@ def test_sampler_draws_what_the_probabilistic_actor_draws(setup) -> None:
     high = parts.dims["action_high"]
     torch.testing.assert_close(ours[PREIMAGE].tanh() * high, ours[ACTION], rtol=0, atol=1e-6)
     assert ours[ACTION].std() > 0.05  # a stochastic policy, not the mean
+
+
+def test_update_runs_either_loss_and_moves_the_weights(setup) -> None:
+    from sigmarl.training.mappo import update
+
+    cfg, parts, data = setup
+    ppo = cfg.ppo.copy()
+    ppo.epochs, ppo.minibatch_size = 1, 64
+    for loss in (LeanPPOLoss(parts.actor, parts.critic, ppo), TorchrlPPOLoss(parts.actor, parts.critic, ppo)):
+        before = [p.detach().clone() for p in parts.actor.parameters()]
+        terms = update(data, loss, parts.optimiser, ppo)
+        assert set(terms) == set(TERMS) and all(math.isfinite(v) for v in terms.values())
+        assert any(not torch.equal(b, p) for b, p in zip(before, parts.actor.parameters(), strict=True))
