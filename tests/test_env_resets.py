@@ -14,6 +14,7 @@ import torch
 
 from sigmarl.compose import compose_config
 from sigmarl.env.factory import make_env
+from sigmarl.env.reward import total_reward
 from sigmarl.errors import SigmarlError
 
 MIN_GAP = 1.2 * math.hypot(0.16, 0.08)  # 1.2 x vehicle diagonal = 0.214663 m
@@ -48,6 +49,11 @@ def test_train_collision_ends_that_envs_episode(env_factory, straight_road):
     assert info(nxt, "agent_collision").tolist() == [[1, 1], [0, 0], [0, 0]]
     assert info(nxt, "lane_collision").tolist() == [[0, 0], [1, 0], [0, 0]]
     sc = drv.sc
+    # the terminal step keeps its reward through the reset that follows it, collision
+    # penalties included (a reset once zeroed them in the returned step)
+    reward = nxt["agents", "reward"].squeeze(-1)
+    torch.testing.assert_close(reward, total_reward(sc.terms))
+    assert (reward[0] <= -0.5).all() and reward[1, 0] <= -0.5, reward
     # env 2 untouched, envs 0 and 1 fully respawned (all agents of the env; none of the
     # old positions x = 1.0, 1.1, 3.0 is a training spawn point 0.08 k in [0.56, 2.0])
     torch.testing.assert_close(sc.pos[2], pos[2])

@@ -153,19 +153,19 @@ class TrafficScenario(BaseScenario):
         envs = self.pending_reset
         if not envs.any():
             return None
-        place = envs.unsqueeze(-1).expand(-1, self.n_agents).clone()  # pending_reset is cleared below
-        self._respawn(place, all_agents=True)
-        zero = torch.zeros((), device=self.pos.device)
-        for t in (self.steering, self.prev_steering):
-            t[envs] = zero
-        for t in (self.agent_collision, self.lane_collision, self.respawned):
-            t[envs] = False
-        self.rew[envs] = 0.0
-        self.terminated[envs] = False
-        self.pending_reset[:] = False
+        place = envs.unsqueeze(-1).expand(-1, self.n_agents)
+        self._respawn(place)
+        # Rebound, never written in place: the last step's output still holds these tensors
+        # (an in-place write here once zeroed the collision penalty of every terminal step).
+        self.agent_collision = self.agent_collision & ~place
+        self.lane_collision = self.lane_collision & ~place
+        self.respawned = self.respawned & ~place
+        self.rew = self.rew.masked_fill(place, 0.0)
+        self.terminated = self.terminated & ~envs
+        self.pending_reset = torch.zeros_like(envs)
         return place
 
-    def _respawn(self, place: torch.Tensor, all_agents: bool = False) -> None:
+    def _respawn(self, place: torch.Tensor) -> None:
         """New route, position, heading and speed for the agents where `place` is True."""
         # Agents being replaced do not block the sampler: park them far away.
         pos = torch.where(place.unsqueeze(-1), torch.full_like(self.pos, 1e6), self.pos)
