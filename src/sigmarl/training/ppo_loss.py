@@ -3,7 +3,7 @@
 - `TorchrlPPOLoss` wraps torchrl's `ClipPPOLoss` (`ppo.loss=torchrl`).
 - `LeanPPOLoss` (`ppo.loss=lean`, the default) computes the same numbers on plain tensors
   over the actor's and critic's own parameters. At the paper's sizes ClipPPOLoss costs
-  about 40% more than the maths (benchmarks/bench_training.py): per minibatch it indexes
+  about 20% more than the maths (benchmarks/bench_training.py): per minibatch it indexes
   TensorDicts, swaps MultiAgentMLP parameters into a module and inverts tanh to score the
   stored actions. Here what does not depend on the parameters (pre-tanh actions and their
   log-Jacobian) is computed once per iteration. tests/test_ppo_loss.py checks its losses
