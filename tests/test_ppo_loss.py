@@ -48,10 +48,13 @@ def _grads(parts, total) -> list[torch.Tensor]:
     return torch.autograd.grad(total, params)
 
 
-def test_lean_loss_equals_clip_ppo_loss(setup) -> None:
+@pytest.mark.parametrize("normalize_advantage", [False, True])
+def test_lean_loss_equals_clip_ppo_loss(setup, normalize_advantage) -> None:
     cfg, parts, data = setup
-    lean = LeanPPOLoss(parts.actor, parts.critic, cfg.ppo)
-    ref = TorchrlPPOLoss(parts.actor, parts.critic, cfg.ppo)
+    ppo = cfg.ppo.copy()
+    ppo.normalize_advantage = normalize_advantage
+    lean = LeanPPOLoss(parts.actor, parts.critic, ppo)
+    ref = TorchrlPPOLoss(parts.actor, parts.critic, ppo)
     idx = torch.randperm(data.numel(), generator=torch.Generator().manual_seed(1))[:64]
     total_l, terms_l = _run(lean, data, idx, seed=7)
     total_r, terms_r = _run(ref, data, idx, seed=7)
