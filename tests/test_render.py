@@ -117,3 +117,22 @@ def test_bare_scenario_needs_a_map(env):
             render_state(sc)
     road_map = env._constructor_kwargs["road_map"]
     assert render_state(sc, road_map=road_map).axes[0].get_title().startswith(road_map.name)
+
+
+def test_test_mode_collision_is_drawn_where_it_happened():
+    """In test mode colliders respawn within the step; the frame of that step shows them red at
+    the pose they collided in, not at their new start."""
+    env = make_env(compose_config(), num_envs=2, n_agents=4, seed=1, mode="test")
+    td = env.reset()
+    sc, pos = _place(env, behind=1)
+    td["agents", "action"] = torch.zeros(2, 4, 2)
+    nxt = env.step(td)["next"]
+    hit = nxt["agents", "info", "agent_collision"][0].squeeze(-1).bool()
+    assert hit.tolist() == [True, True, False, False]
+    assert nxt["agents", "info", "respawned"][0, :2].bool().all()
+    assert (sc.pos[0, :2] - pos[:2]).norm(dim=-1).min() > 0.05  # they did respawn elsewhere
+    fig = render_state(env)
+    edges = [p.get_edgecolor()[:3] for p in fig.axes[0].patches[-4:]]
+    assert edges[:2] == [(1.0, 0.0, 0.0)] * 2
+    assert _red_near(fig, pos[:2]) > 20
+    assert _red_near(fig, sc.pos[0, :2]) == 0

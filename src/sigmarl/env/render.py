@@ -84,9 +84,15 @@ def snapshot(scenario: TrafficScenario, env_index: int = 0, step: int | None = N
     ref = ref[env_index].detach().cpu() if ref is not None else pos.unsqueeze(-2)
     agent_hit = s.agent_collision[env_index].cpu()
     lane_hit = s.lane_collision[env_index].cpu()
-    # In test mode colliders respawn within the step, so their flag no longer matches their
-    # (new) pose: count them in the title but do not highlight the respawned rectangle.
-    shown = (agent_hit | lane_hit) & ~s.respawned[env_index].cpu()
+    shown = agent_hit | lane_hit
+    # In test mode colliders respawn within the step: draw them where they collided (the pose
+    # the step ended in), without look-ahead points; the next frame shows their new start.
+    moved = shown & s.respawned[env_index].cpu()
+    if moved.any():
+        m = moved.unsqueeze(-1)
+        pos = torch.where(m, s.step_pos[env_index].detach().cpu(), pos)
+        heading = torch.where(moved, s.step_heading[env_index].detach().cpu(), heading)
+        ref = torch.where(m.unsqueeze(-1), pos.unsqueeze(-2), ref)
     return Snapshot(
         pos=pos.numpy(),
         corners=rect_corners(pos, heading, LENGTH, WIDTH).numpy(),

@@ -296,6 +296,7 @@ class TrafficScenario(BaseScenario):
         if place is not None:
             self._spawn_geometry(place)
         self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
+        self.step_pos, self.step_heading = self.pos, self.heading
         self._observe()
 
     def set_state(
@@ -325,6 +326,7 @@ class TrafficScenario(BaseScenario):
         self._geometry()
         self._collisions()
         self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
+        self.step_pos, self.step_heading = self.pos, self.heading
         self._observe()
         return self.obs
 
@@ -357,6 +359,8 @@ class TrafficScenario(BaseScenario):
         self.rew = total_reward(self.terms)
         # Metrics of this step, before anyone respawns.
         self.step_d_center = self.d_center
+        # the poses the step ended in, before anyone respawns (rendering shows collisions there)
+        self.step_pos, self.step_heading = self.pos, self.heading
         self.step_speed = self.speed.abs()
         exited = self._past_exit()
         collided = self.agent_collision | self.lane_collision
