@@ -111,16 +111,20 @@ class RouteBank:
         c = torch.arange(table.shape[1], device=idx.device)[:, None].expand_as(idx)
         return table[r, c, idx]
 
-    def window_table(self, which: str, offsets: torch.Tensor) -> torch.Tensor:
-        """`windows` precomputed for every (route, center index): [R * M, C, W, 2], row
-        route * M + index. Per step, a window is then one row lookup instead of index
-        arithmetic (wrap, clamp) and a three-way gather."""
+    def every_point(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(route, center index) of every row of the per-point tables, [R * M] each, in row
+        order (see `row`); padding rows repeat their route's last real point."""
         n = self.center.shape[1]
         route = torch.arange(self.n_routes, device=self.center.device).repeat_interleave(n)
         index = torch.arange(n, device=route.device).repeat(self.n_routes)
-        index = torch.minimum(index, self.n_center[route] - 1)  # padding rows: the last real point
-        return self.windows(which, route, index, offsets).contiguous()
+        return route, torch.minimum(index, self.n_center[route] - 1)
+
+    def window_table(self, which: str, offsets: torch.Tensor) -> torch.Tensor:
+        """`windows` precomputed for every (route, center index): [R * M, C, W, 2]. Per step, a
+        window is then one row lookup instead of index arithmetic (wrap, clamp) and a three-way
+        gather."""
+        return self.windows(which, *self.every_point(), offsets).contiguous()
 
     def row(self, route: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
-        """Row of `window_table` for route and center index."""
+        """Row of the per-point tables for route and center index."""
         return route * self.center.shape[1] + index

@@ -239,27 +239,30 @@ class TrafficScenario(BaseScenario):
 
     def _spawn_table(self) -> dict[str, torch.Tensor]:
         """Ego geometry of a vehicle standing on each center-line point, heading along the
-        route: [R, N, ...]. Spawns are such poses, so a respawn reads its geometry here
-        instead of recomputing it (a second geometry pass would cost as much as the step's)."""
+        route: [R * M, ...] rows (`RouteBank.row`). Spawns are such poses, so a respawn reads
+        its geometry here instead of recomputing it (a second geometry pass would cost as much
+        as the step's)."""
         b = self.bank
-        n = b.center.shape[1]
-        routes = torch.arange(b.n_routes, device=b.center.device)
-        index = b.center_index(routes, torch.arange(n, device=routes.device).expand(len(routes), n))
-        route = routes.unsqueeze(-1).expand_as(index)
-        pos = b.center[route, index]
-        return self._ego_geometry(pos, b.heading[route, index], route, index)
+        route, index = b.every_point()
+        return self._ego_geometry(b.center[route, index], b.heading[route, index], route, index)
 
     def _spawn_geometry(self, place: torch.Tensor) -> None:
         """Geometry after the agents where `place` [E, A] were respawned (see `_spawn_table`)."""
-        everyone = bool(place.all())
+        everyone = bool(place.all())  # always so at the first reset, before any geometry exists
+        rows = self.bank.row(self.route, self.index)
         for name, table in self.spawn_table.items():
-            fresh = table[self.route, self.index]
-            if everyone or not hasattr(self, name):
-                setattr(self, name, fresh)
-                continue
-            m = place.view(*place.shape, *(1,) * (fresh.dim() - 2))
-            setattr(self, name, torch.where(m, fresh, getattr(self, name)))
+            fresh = table[rows]
+            if not everyone:
+                m = place.view(*place.shape, *(1,) * (fresh.dim() - 2))
+                fresh = torch.where(m, fresh, getattr(self, name))
+            setattr(self, name, fresh)
         self._neighbour_geometry()
+
+    def _record_step_end(self) -> None:
+        """Metrics of the state the step ended in, and its poses, kept before anyone respawns
+        (infos report them; rendering draws test-mode collisions where they happened)."""
+        self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
+        self.step_pos, self.step_heading = self.pos, self.heading
 
     def _collisions(self) -> None:
         self.agent_collision = pairwise_box_overlap(self.pos, self.heading, LENGTH, WIDTH).any(-1)
@@ -295,8 +298,7 @@ class TrafficScenario(BaseScenario):
         place = self._flush_resets()
         if place is not None:
             self._spawn_geometry(place)
-        self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
-        self.step_pos, self.step_heading = self.pos, self.heading
+        self._record_step_end()
         self._observe()
 
     def set_state(
@@ -325,8 +327,7 @@ class TrafficScenario(BaseScenario):
         self.index = d.masked_fill(invalid, float("inf")).argmin(-1)
         self._geometry()
         self._collisions()
-        self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
-        self.step_pos, self.step_heading = self.pos, self.heading
+        self._record_step_end()
         self._observe()
         return self.obs
 
@@ -357,11 +358,7 @@ class TrafficScenario(BaseScenario):
             )
         )
         self.rew = total_reward(self.terms)
-        # Metrics of this step, before anyone respawns.
-        self.step_d_center = self.d_center
-        # the poses the step ended in, before anyone respawns (rendering shows collisions there)
-        self.step_pos, self.step_heading = self.pos, self.heading
-        self.step_speed = self.speed.abs()
+        self._record_step_end()
         exited = self._past_exit()
         collided = self.agent_collision | self.lane_collision
         if self.train:
