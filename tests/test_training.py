@@ -103,7 +103,7 @@ def test_mlflow_holds_params_tags_metric_histories_and_artifacts(runs) -> None:
     assert len(by_dir) == 2  # the resume went into the interrupted run, not a new one
     run = by_dir[str(runs.root / "full")]
     assert run.info.status == "FINISHED" and run.info.run_id == runs.full.run_id
-    assert run.data.tags["model"] == "M0" and run.data.tags["obs_preset"] == "full"
+    assert run.data.tags["model"] == "M0" and run.data.tags["obs"] == "E,V,DA,DB,DC"
     assert run.data.tags["seed"] == "0"
     assert run.data.params["ppo.lr"] == "0.0002" and run.data.params["ppo.iterations"] == "3"
     assert run.data.params["network.hidden"] == "[256, 256]"

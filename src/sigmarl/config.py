@@ -10,7 +10,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING
+from omegaconf import MISSING, OmegaConf
+
+from sigmarl.study import model_label
 
 
 @dataclass
@@ -129,7 +131,19 @@ class Config:
     device: str = "cpu"
     threads: int = 1
     resume: bool = False
+    model: str = MISSING  # M0..M5 or custom-<hash>, derived from the obs flags (conf/config.yaml)
+    runs_root: str = MISSING  # the study's run folders: <runs_root>/<model>/seed<seed>
     run_dir: str = MISSING  # where checkpoints live; set by conf/config.yaml
+
+
+def _register_resolvers() -> None:
+    # `${sigmarl_model:${obs}}` in conf/config.yaml. Registered at import, so that every process
+    # that resolves a config (a launcher's worker too) knows it.
+    if not OmegaConf.has_resolver("sigmarl_model"):
+        OmegaConf.register_new_resolver("sigmarl_model", model_label)
+
+
+_register_resolvers()
 
 
 def register_configs() -> None:

@@ -172,7 +172,7 @@ def summarise(overrides: Sequence[str]) -> int:
             else:
                 state = "unfinished (run the sweep again to resume)"
                 bad += 1
-            print(f"  {preset:<28} seed {seed:<3} {state}   [{run_dir}]")
+            print(f"  {cfg.model:<6} {preset:<28} seed {seed:<3} {state}   [{run_dir}]")
     if not bad:
         print(f"next: sigmarl report {' '.join(o for o in fixed if o.startswith(('study', 'tracking')))}".rstrip())
     return 1 if bad else 0

@@ -17,26 +17,7 @@ from urllib.parse import urlparse
 from omegaconf import DictConfig, OmegaConf
 
 from sigmarl.errors import SigmarlError
-from sigmarl.study import PRESET_TO_MODEL
-
-# observation flags; switching one off is the preset "no_<flag>"
-OBS_FLAGS = (
-    "ego_view",
-    "vertices",
-    "distance_to_agents",
-    "distance_to_boundaries",
-    "distance_to_center_line",
-)
-
-
-def model_name(obs: DictConfig) -> str:
-    """M0 with every strategy on, M1..M5 with exactly one off, otherwise "custom"."""
-    off = [f for f in OBS_FLAGS if not obs[f]]
-    if not off:
-        return "M0"
-    if len(off) == 1:
-        return PRESET_TO_MODEL.get(f"no_{off[0]}", "custom")
-    return "custom"
+from sigmarl.study import model_label, obs_strategies
 
 
 def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
@@ -157,14 +138,14 @@ class Tracker:
             )
             tags = {
                 "kind": "training",  # evaluation and report runs share the experiment
-                "model": model_name(cfg.obs),
-                "obs_preset": str(cfg.obs.preset),
+                "model": model_label(cfg.obs),
+                "obs": obs_strategies(cfg.obs),
                 "seed": str(cfg.seed),
             }
             if commit := git_commit():
                 tags["git_commit"] = commit
                 tags["mlflow.source.git.commit"] = commit
-            run_name = f"{tags['model']}-{cfg.obs.preset}-seed{cfg.seed}"
+            run_name = f"{tags['model']}-seed{cfg.seed}"
             run = client.create_run(exp_id, run_name=run_name, tags=tags)
         except SigmarlError:
             raise

@@ -106,7 +106,7 @@ def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
     # Keep the newest evaluation of each (model, seed) so a re-evaluation replaces the old one.
     latest = {}
     for run in runs:
-        latest[(run.data.tags.get("model"), run.data.tags.get("seed"), run.data.tags.get("obs_preset"))] = run
+        latest[(run.data.tags.get("model"), run.data.tags.get("seed"), run.data.tags.get("obs"))] = run
     with tempfile.TemporaryDirectory() as tmp:
         for run in latest.values():
             path = client.download_artifacts(run.info.run_id, ROWS_ARTIFACT, tmp)

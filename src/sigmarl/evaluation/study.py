@@ -11,7 +11,7 @@ from omegaconf import DictConfig, OmegaConf
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation import records
 from sigmarl.evaluation.rollout import evaluate_policy
-from sigmarl.study import PRESET_TO_MODEL, SCENARIOS
+from sigmarl.study import SCENARIOS, model_label, obs_strategies
 
 
 def checkpoint_name(which: str) -> str:
@@ -69,10 +69,9 @@ def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] |
                                seed=eval_cfg.seed, n_agents=n_agents, device=device, progress=progress)
         frames.append(rows)
     train_cfg = OmegaConf.create(state["config"])
-    preset = str(train_cfg.obs.preset)
     rows = pd.concat(frames, ignore_index=True)
-    rows.insert(0, "model", PRESET_TO_MODEL.get(preset, preset))
-    rows.insert(1, "obs", preset)
+    rows.insert(0, "model", model_label(train_cfg.obs))
+    rows.insert(1, "obs", obs_strategies(train_cfg.obs))
     rows.insert(2, "seed", int(train_cfg.seed))
     return rows, state
 
@@ -88,7 +87,7 @@ def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scen
     train_cfg = OmegaConf.create(state["config"])
     tags = {
         "model": str(rows["model"].iloc[0]),
-        "obs_preset": str(train_cfg.obs.preset),
+        "obs": obs_strategies(train_cfg.obs),
         "seed": str(train_cfg.seed),
         "train_run_id": train_run_id or state.get("mlflow_run_id") or "",
         "checkpoint": str(path),
