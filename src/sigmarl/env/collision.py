@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import torch
 
-from sigmarl.env.geometry import to_local
-
 _EPS = 1e-6  # m, so that exactly touching rectangles count in float32
 
 
@@ -44,24 +42,37 @@ def pairwise_box_overlap(pos: torch.Tensor, heading: torch.Tensor, length: float
 def polyline_box_overlap(
     polyline: torch.Tensor, pos: torch.Tensor, heading: torch.Tensor, length: float, width: float
 ) -> torch.Tensor:
-    """[E, A] True where any segment of the agent's polyline [E, A, W, 2] touches its box.
+    """[...] True where any segment of the polyline [..., W, 2] touches the box at pos [..., 2]
+    with heading [...]."""
+    return segments_box_overlap(segment_table(polyline.unsqueeze(-3)), pos, heading, length, width)[..., 0]
 
-    In the vehicle frame the box is axis-aligned: a segment misses it iff its
-    bounding interval misses the box on x or y, or the box lies entirely on one
-    side of the segment's line.
+
+def segments_box_overlap(
+    table: torch.Tensor, pos: torch.Tensor, heading: torch.Tensor, length: float, width: float
+) -> torch.Tensor:
+    """[..., C] True where any segment of the `segment_table` rows [..., 5, C, S] touches the
+    box at pos [..., 2] with heading [...].
+
+    In the vehicle frame the box is axis-aligned: a segment misses it iff its bounding
+    interval misses the box on x or y, or the box lies entirely on one side of the segment's
+    line.
     """
     hl, hw = length / 2, width / 2
-    q = to_local(polyline, pos, heading)  # [E, A, W, 2]
-    a, b = q[..., :-1, :], q[..., 1:, :]
-    lo, hi = torch.minimum(a, b), torch.maximum(a, b)
-    in_x = (lo[..., 0] <= hl + _EPS) & (hi[..., 0] >= -hl - _EPS)
-    in_y = (lo[..., 1] <= hw + _EPS) & (hi[..., 1] >= -hw - _EPS)
-    d = b - a
+    c = heading.cos()[..., None, None]
+    s = heading.sin()[..., None, None]
+    rx = table[..., 0, :, :] - pos[..., 0, None, None]  # [..., C, S]
+    ry = table[..., 1, :, :] - pos[..., 1, None, None]
+    dx, dy = table[..., 2, :, :], table[..., 3, :, :]
+    ax, ay = rx * c + ry * s, ry * c - rx * s  # segment start and direction in the vehicle frame
+    ux, uy = dx * c + dy * s, dy * c - dx * s
+    bx, by = ax + ux, ay + uy
+    in_x = (torch.minimum(ax, bx) <= hl + _EPS) & (torch.maximum(ax, bx) >= -hl - _EPS)
+    in_y = (torch.minimum(ay, by) <= hw + _EPS) & (torch.maximum(ay, by) >= -hw - _EPS)
     # Distance of the box center from the segment's line, and the box's half-extent along
     # the line's normal, both scaled by |d| (so zero-length segments reduce to a point test).
-    side = (d[..., 0] * a[..., 1] - d[..., 1] * a[..., 0]).abs()
-    reach = hl * d[..., 1].abs() + hw * d[..., 0].abs()
-    across = side <= reach + _EPS * d.norm(dim=-1)
+    side = (ux * ay - uy * ax).abs()
+    reach = hl * uy.abs() + hw * ux.abs()
+    across = side <= reach + _EPS * torch.hypot(ux, uy)
     return (in_x & in_y & across).any(-1)
 
 

@@ -1,12 +1,17 @@
 """All routes of a map as padded tensors on the simulation device.
 
-Built once per map. Per-step code gathers windows of points around each
-agent's progress index, for all agents, routes and lines at once:
-- `lines` [R, 3, N, 2]: the center line (resampled every 0.08 m) and dense copies
-  (every 0.02 m) of the left and right corridor boundaries, for distances and
-  collisions;
-- `sides` [R, 2, K, 2]: the boundaries resampled every 0.08 m, for the
-  observed boundary points.
+Built once per map. Per-step code gathers windows around each agent's progress index,
+for all agents and routes at once:
+- `lines` [R, 1, N, 2]: the center line (resampled every 0.08 m), for the center-line
+  distance and the reference points;
+- `sides` [R, 2, K, 2]: the boundaries resampled every 0.08 m, for the observed
+  boundary points;
+- `bounds` [R, 5, 2, S]: the corridor boundaries as the map gives them (raw vertices), as
+  segment constants, for boundary distances and collisions. Their window per center point
+  is the stretch of boundary that goes with it, out to `BOUNDARY_REACH` from the point
+  (`boundary_window_table`); the scenario checks per agent that this stretch provably holds
+  everything the vehicle can touch or is nearest to, and falls back to a wider one
+  otherwise (see `TrafficScenario._boundaries`).
 A lookup table maps each center-line index to the nearest point of every line,
 so a fixed window around it always covers the agent.
 """
@@ -15,11 +20,11 @@ from __future__ import annotations
 
 import torch
 
+from sigmarl.env.collision import segment_table
 from sigmarl.maps.model import RoadMap
-from sigmarl.maps.routes import resample
 
-DENSE_STEP = 0.02  # m
-CENTER, LEFT, RIGHT = 0, 1, 2
+CENTER = 0
+HALF_DIAGONAL = (0.16**2 + 0.08**2) ** 0.5 / 2  # m: every point of a vehicle's box is this close to its center
 
 
 def _pad(polylines: list[torch.Tensor], n: int) -> torch.Tensor:
@@ -35,13 +40,6 @@ def _stack_lines(per_route: list[list[torch.Tensor]]) -> tuple[torch.Tensor, tor
     return table, counts
 
 
-def _nearest(table: torch.Tensor, counts: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-    """For targets [R, M, 2], the index of the nearest valid point of each line: [R, C, M]."""
-    d = torch.cdist(targets.unsqueeze(1), table)  # [R, C, M, N]
-    invalid = torch.arange(table.shape[2])[None, None, None, :] >= counts[:, :, None, None]
-    return d.masked_fill(invalid, float("inf")).argmin(-1)
-
-
 class RouteBank:
     """Padded route tensors plus per-route lookup tables, in float64 until moved to the device."""
 
@@ -52,22 +50,24 @@ class RouteBank:
         self.is_loop = torch.tensor([r.is_loop for r in routes])
         self.n_points = torch.tensor([r.n_points for r in routes])  # center points before the extension
 
-        def dense(line: torch.Tensor) -> torch.Tensor:
-            return torch.as_tensor(resample(line.numpy(), DENSE_STEP))
-
-        lines, n_lines = _stack_lines([[r.center, dense(r.left), dense(r.right)] for r in routes])
+        lines, n_lines = _stack_lines([[r.center] for r in routes])
         sides, n_sides = _stack_lines([[r.left_resampled, r.right_resampled] for r in routes])
+        # Raw corridor boundaries; padding repeats the last point (zero-length segments there
+        # add nothing new to a distance or a contact test).
+        bounds, n_bounds = _stack_lines([[r.left, r.right] for r in routes])
         center = lines[:, CENTER]
         self.n_center = n_lines[:, CENTER]
-        # Index arithmetic per line: wrap on loops (a closed boundary repeats its first
-        # point at the end, so it wraps one earlier), clamp to the valid points otherwise.
-        loop = self.is_loop.long()[:, None]
-        self.lines_wrap = n_lines - loop * torch.tensor([0, 1, 1])
+        # Index arithmetic per line: wrap on loops, clamp to the valid points otherwise.
+        self.lines_wrap = n_lines.clone()
         self.lines_count = n_lines
         self.sides_wrap = n_sides
         self.sides_count = n_sides
-        self.to_lines = _nearest(lines, n_lines, center).permute(0, 2, 1).contiguous()  # [R, M, 3]
-        self.to_sides = _nearest(sides, n_sides, center).permute(0, 2, 1).contiguous()  # [R, M, 2]
+        m = torch.arange(center.shape[1])
+        self.to_lines = torch.minimum(m, self.n_center[:, None] - 1)[..., None]  # [R, M, 1]
+        # Boundary points and segments that go with each center point: followed along the
+        # route, so that where a route crosses itself the other pass is never taken for it.
+        point_dist = torch.cdist(center.unsqueeze(1), sides)  # [R, 2, M, K]
+        self.to_sides = _follow(point_dist, n_sides, self.n_center, self.is_loop).permute(0, 2, 1).contiguous()
         # Direction of the center line at each point (a loop's last point faces its first).
         nxt = torch.roll(center, -1, dims=1)
         last = self.n_center - 1
@@ -78,6 +78,20 @@ class RouteBank:
         seg = nxt - center
         self.heading = torch.atan2(seg[..., 1], seg[..., 0])  # [R, M]
 
+        table = segment_table(bounds)  # [R, 5, 2, S]
+        seg_dist = _segment_distances(center, table)  # [R, 2, M, S]
+        n_seg = n_bounds - 1
+        near = _follow(seg_dist, n_seg, self.n_center, self.is_loop)  # [R, 2, M]
+        self.bounds = table.to(dtype=dtype, device=device)
+        # How far a boundary lies from its center line on this map (0.225 m on CPM's two-lane
+        # corridors), and from it the reach of the two boundary windows (see `reaches`).
+        self.extent = float(seg_dist.gather(-1, near.unsqueeze(-1)).max())
+        self.reach, self.wide_reach = reaches(self.extent)
+        self._bound_window = {
+            reach: _local_runs(seg_dist, near, n_seg, self.is_loop, reach)
+            for reach in (self.reach, self.wide_reach)
+        }
+
         to = dict(device=device)
         self.lines = lines.to(dtype=dtype, **to)
         self.sides = sides.to(dtype=dtype, **to)
@@ -86,6 +100,7 @@ class RouteBank:
         for name in ("is_loop", "n_points", "n_center", "lines_wrap", "lines_count", "sides_wrap",
                      "sides_count", "to_lines", "to_sides"):
             setattr(self, name, getattr(self, name).to(**to))
+        self._bound_window = {k: v.to(**to) for k, v in self._bound_window.items()}
         # Center-line windows wrap at the real points of a loop and clamp at the extension's end.
         self.center_wrap = self.lines_wrap[:, CENTER]
 
@@ -125,6 +140,101 @@ class RouteBank:
         gather."""
         return self.windows(which, *self.every_point(), offsets).contiguous()
 
+    def boundary_window_table(self, reach: float) -> torch.Tensor:
+        """Per row, the segment constants of the boundary stretch that goes with the center
+        point: the run of consecutive segments around the one that goes with it, out to the
+        first segment farther than `reach` (`self.reach` or `self.wide_reach`) from the point,
+        on either side. [R * M, 5, 2, S_w]; shorter runs repeat their last member."""
+        route, index = self.every_point()
+        seg = self._bound_window[reach][route, index]  # [R * M, 2, S_w]
+        table = self.bounds[route]  # [R * M, 5, 2, S]
+        return table.gather(-1, seg.unsqueeze(1).expand(-1, 5, -1, -1)).contiguous()
+
     def row(self, route: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
         """Row of the per-point tables for route and center index."""
         return route * self.center.shape[1] + index
+
+
+def reaches(extent: float) -> tuple[float, float]:
+    """Reach of the boundary windows of a map whose boundaries lie at most `extent` from their
+    center line: the window's answer is exact for an agent whose probes q (center, corners)
+    all satisfy |q - c| + d(q, window) <= reach, c its center point (the scenario checks).
+
+    - near: extent + 0.3 m covers a vehicle anywhere inside its corridor, near its center line;
+    - wide: a vehicle inside its corridor has |q - c| <= extent + 0.04 (half a center-point
+      spacing) + HALF_DIAGONAL and d(q) <= 2 extent + HALF_DIAGONAL (the corridor's width,
+      from a corner), so 3 extent + 2 HALF_DIAGONAL + 0.1 m covers every vehicle that has not
+      left its corridor: one that fails it has.
+    """
+    return extent + 0.3, 3 * extent + 2 * HALF_DIAGONAL + 0.1
+
+
+def _segment_distances(points: torch.Tensor, table: torch.Tensor) -> torch.Tensor:
+    """Distance from every point [R, M, 2] to every segment of a `segment_table` [R, 5, C, S]:
+    [R, C, M, S]."""
+    px, py = points[..., 0][:, None, :, None], points[..., 1][:, None, :, None]  # [R, 1, M, 1]
+    ax, ay, dx, dy, inv = (t.unsqueeze(-2) for t in table.unbind(1))  # [R, C, 1, S]
+    t = (((px - ax) * dx + (py - ay) * dy) * inv).clamp(0.0, 1.0)
+    return torch.hypot(px - ax - t * dx, py - ay - t * dy)
+
+
+def _step(j: int, k: int, n: int, loop: bool) -> int:
+    """Index j moved by k along a line of n elements (wrapping on loops, clamped otherwise)."""
+    return (j + k) % n if loop else min(max(j + k, 0), n - 1)
+
+
+def _follow(dist: torch.Tensor, n_line: torch.Tensor, n_center: torch.Tensor, is_loop: torch.Tensor,
+            ahead: int = 8) -> torch.Tensor:
+    """For each center point, the element (point or segment) of each line that goes with it.
+
+    dist [R, C, M, N] from center points to line elements. Walking the center line from its
+    start, each point takes the nearest element among the previous point's and the `ahead`
+    elements after it (a center step of 0.08 m never passes more). Both start at the route's
+    start, so the walk stays on the same stretch of road even where a route crosses itself
+    or comes back near itself. Returns [R, C, M] (padding rows repeat the last real one).
+    """
+    r_n, c_n, m_n, _ = dist.shape
+    out = torch.zeros(r_n, c_n, m_n, dtype=torch.long)
+    d = dist.numpy()
+    for r in range(r_n):
+        loop = bool(is_loop[r])
+        for c in range(c_n):
+            n = int(n_line[r, c])
+            j = 0
+            for i in range(int(n_center[r])):
+                cand = [_step(j, k, n, loop) for k in range(ahead + 1)]
+                j = min(cand, key=lambda q: d[r, c, i, q])
+                out[r, c, i] = j
+            out[r, c, int(n_center[r]):] = j
+    return out
+
+
+def _local_runs(dist: torch.Tensor, near: torch.Tensor, n_seg: torch.Tensor, is_loop: torch.Tensor,
+                reach: float) -> torch.Tensor:
+    """Per route, center point and side, the run of consecutive segments around `near` out to
+    the first one farther than `reach` on either side: [R, M, C, S_w] indices, shorter runs
+    padded with their last member."""
+    r_n, c_n, m_n, _ = dist.shape
+    runs: dict[tuple[int, int, int], list[int]] = {}
+    d = dist.numpy()
+    for r in range(r_n):
+        loop = bool(is_loop[r])
+        for c in range(c_n):
+            n = int(n_seg[r, c])
+            for i in range(m_n):
+                j0 = int(near[r, c, i])
+                run = [j0]
+                for direction in (-1, 1):
+                    j = j0
+                    while len(run) < n:
+                        nxt = _step(j, direction, n, loop)
+                        if nxt == j or nxt in run or d[r, c, i, nxt] > reach:
+                            break
+                        run.insert(0, nxt) if direction < 0 else run.append(nxt)
+                        j = nxt
+                runs[r, c, i] = run
+    width = max(len(run) for run in runs.values())
+    out = torch.zeros(r_n, m_n, c_n, width, dtype=torch.long)
+    for (r, c, i), run in runs.items():
+        out[r, i, c] = torch.tensor(run + [run[-1]] * (width - len(run)))
+    return out

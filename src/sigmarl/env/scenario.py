@@ -19,14 +19,14 @@ from vmas.simulator.scenario import BaseScenario
 from sigmarl.env.collision import (
     nearest_on_segments,
     pairwise_box_overlap,
-    polyline_box_overlap,
     segment_table,
+    segments_box_overlap,
 )
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import rect_corners
 from sigmarl.env.observation import ObsFlags, ObsInputs, build_observation
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
-from sigmarl.env.route_bank import CENTER, LEFT, RouteBank
+from sigmarl.env.route_bank import CENTER, HALF_DIAGONAL, RouteBank
 from sigmarl.env.spawn import sample_spawns, spawn_index_range
 from sigmarl.maps.model import RoadMap
 
@@ -34,11 +34,21 @@ LENGTH, WIDTH = 0.16, 0.08
 MAX_SPEED = 0.8
 MAX_STEER = math.radians(35)
 DT = 0.05
-# Windows of points around an agent's progress index (spacing: 0.08 m on the center line
-# and the observed boundary points, 0.02 m on the dense boundaries).
+# Windows of points around an agent's progress index (spacing 0.08 m). Boundary distances and
+# contacts use windows of raw boundary segments instead (RouteBank.boundary_window_table).
 CENTER_WINDOW = (-3, 8)  # progress search: an agent moves at most 0.04 m per step
-LINE_WINDOW = (-6, 7)  # distances and collisions: +-0.48 m of center line, +-0.12 m of boundary
+LINE_WINDOW = (-6, 7)  # center-line distance and reference points: +-0.48 m of center line
 SIDE_WINDOW = (-1, 4)  # observed boundary points: 1 behind .. 3 ahead of the closest
+# Margin of the exactness check against float32 rounding of the distances it adds up.
+_REACH_MARGIN = 1e-3  # m
+
+
+def _proven(probe: torch.Tensor, center: torch.Tensor, dist: torch.Tensor, reach: float) -> torch.Tensor:
+    """[...] True where a boundary window reaching `reach` around `center` [..., 2] provably
+    gives the exact distances dist [..., 2, 5] of the probes [..., 5, 2] (center first) and
+    holds every segment the box can touch."""
+    room = reach - _REACH_MARGIN - (probe - center.unsqueeze(-2)).norm(dim=-1)  # [..., 5]
+    return (dist <= room.unsqueeze(-2)).flatten(-2).all(-1) & (room[..., 0] >= HALF_DIAGONAL)
 
 
 class TrafficScenario(BaseScenario):
@@ -93,6 +103,8 @@ class TrafficScenario(BaseScenario):
         self._line_table = self.bank.window_table("lines", self._line_offsets)
         self._side_table = self.bank.window_table("sides", self._side_offsets)
         self._segment_table = segment_table(self._line_table)
+        self._bound_table = self.bank.boundary_window_table(self.bank.reach)
+        self._wide_table = self.bank.boundary_window_table(self.bank.wide_reach)
         self.spawn_table = self._spawn_table()
         return world
 
@@ -195,35 +207,58 @@ class TrafficScenario(BaseScenario):
         """What observation, reward and collisions read of each agent's own pose, [E, A, ...]."""
         b = self.bank
         corners = rect_corners(pos, heading, LENGTH, WIDTH)  # [E, A, 4, 2]
-        # One window on the center line and both dense corridor boundaries: [E, A, 3, W, 2].
         rows = b.row(route, index)
-        lines = self._line_table[rows]
+        lines = self._line_table[rows]  # center-line window: [E, A, 1, W, 2]
+        d_center = nearest_on_segments(pos.unsqueeze(-2), self._segment_table[rows])[0][..., CENTER, 0]
         probe = torch.cat([pos.unsqueeze(-2), corners], dim=-2)  # [E, A, 5, 2]
-        dist, seg = nearest_on_segments(probe, self._segment_table[rows])  # [E, A, 3, 5]
-        # DB: min(center distance - half width, corner distances), per side.
-        sides = dist[..., LEFT:, :]
-        # Boundary collision: the box touches a boundary, or its center is already beyond
-        # one (left boundary: center to its right is inside; right boundary: to its left).
-        bnd = lines[..., LEFT:, :, :]  # [E, A, 2, W, 2]
-        s = seg[..., LEFT:, 0]  # closest segment to the center, per side
-        gi = s[..., None, None].expand(*s.shape, 1, 2)
-        a = bnd.gather(-2, gi).squeeze(-2)
-        c = bnd.gather(-2, gi + 1).squeeze(-2)
-        rel = pos.unsqueeze(-2) - a
-        cross = (c - a)[..., 0] * rel[..., 1] - (c - a)[..., 1] * rel[..., 0]
-        # Only trusted near the boundary: a far segment's line can put the center on either
-        # side on a curve, and a vehicle (<= 0.04 m a step) cannot get far beyond unnoticed.
-        outside = (cross * self._side_sign > 0) & (sides[..., 0] < 0.1)
-        touch = polyline_box_overlap(bnd, pos.unsqueeze(-2), heading.unsqueeze(-1), LENGTH, WIDTH)
+        sides, side_hit = self._boundaries(probe, pos, heading, b.center[route, index], rows)
         return {
             "corners": corners,
-            "d_center": dist[..., CENTER, 0],
+            "d_center": d_center,
+            # DB: min(center distance - half width, corner distances), per side.
             "d_side": torch.minimum(sides[..., 0] - WIDTH / 2, sides[..., 1:].min(-1).values),  # [E, A, 2]
             "ref_points": lines[..., CENTER, self._ref_slots, :],
-            "side_hit": touch | outside,  # [E, A, 2]
+            "side_hit": side_hit,  # [E, A, 2]
             # Observed corridor points: 1 behind .. 3 ahead of the closest, per side: [E, A, 2, 5, 2].
             "side_points": self._side_table[rows],
         }
+
+    def _boundaries(self, probe, pos, heading, center, rows) -> tuple[torch.Tensor, torch.Tensor]:
+        """Distances from the probes [E, A, 5, 2] to each corridor boundary [E, A, 2, 5], and
+        boundary contact [E, A, 2], exact against the raw boundary polylines.
+
+        A row's window is the stretch of boundary that goes with the center point `center`
+        [E, A, 2], out to the first segment farther than the map's reach from it. A segment of
+        the stretch outside the window is farther than reach - |q - center| from a
+        probe q, so the window's answer is provably the whole stretch's when every probe's
+        distance stays below that; and the box, within HALF_DIAGONAL of its center, can only
+        touch segments of the window then. Agents that fail the check (far off their center
+        line) are recomputed on the wider window; one that fails that too is farther from its
+        center line than its corridor allows, so it has left its corridor (`route_bank.reaches`).
+        """
+        dist, hit = self._boundary_contacts(probe, pos, heading, self._bound_table[rows])
+        exact = _proven(probe, center, dist, self.bank.reach)
+        if not bool(exact.all()):
+            far = (~exact).nonzero(as_tuple=True)
+            p, c = probe[far], center[far]
+            d, h = self._boundary_contacts(p, pos[far], heading[far], self._wide_table[rows[far]])
+            h = h | ~_proven(p, c, d, self.bank.wide_reach).unsqueeze(-1)
+            dist, hit = dist.index_put(far, d), hit.index_put(far, h)
+        return dist, hit
+
+    def _boundary_contacts(self, probe, pos, heading, table) -> tuple[torch.Tensor, torch.Tensor]:
+        """Distances [..., 2, 5] and contact [..., 2] against boundary segments [..., 5, 2, S]."""
+        dist, seg = nearest_on_segments(probe, table)
+        # The box touches a boundary, or its center is already beyond one (left boundary:
+        # center to its right is inside; right boundary: to its left). The side is only
+        # trusted near the boundary: a far segment's line can put the center on either side
+        # on a curve, and a vehicle (<= 0.04 m a step) cannot get far beyond unnoticed.
+        a = table[..., :4, :, :].gather(-1, seg[..., 0][..., None, :, None].expand(*seg.shape[:-2], 4, 2, 1))
+        ax, ay, dx, dy = a.squeeze(-1).unbind(-2)  # [..., 2] each: the segment nearest the center
+        cross = dx * (pos[..., 1, None] - ay) - dy * (pos[..., 0, None] - ax)
+        outside = (cross * self._side_sign > 0) & (dist[..., 0] < 0.1)
+        touch = segments_box_overlap(table, pos, heading, LENGTH, WIDTH)
+        return dist, touch | outside
 
     def _geometry(self) -> None:
         """Everything observation, reward and info read, for all agents at once."""
