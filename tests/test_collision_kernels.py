@@ -88,14 +88,14 @@ def test_polyline_box_segment_inside_and_touching():
     line=st.lists(st.tuples(coord, coord), min_size=3, max_size=3),
     line2=st.lists(st.tuples(coord, coord), min_size=3, max_size=3),
 )
-def test_nearest_on_polylines_matches_shapely(pts, line, line2):
+def test_nearest_on_segments_matches_shapely(pts, line, line2):
     from shapely.geometry import Point
 
-    from sigmarl.env.collision import nearest_on_polylines
+    from sigmarl.env.collision import nearest_on_segments, segment_table
 
     p = torch.tensor(pts, dtype=torch.float64)
     lines = torch.tensor([line, line2], dtype=torch.float64)
-    dist, seg = nearest_on_polylines(p, lines)
+    dist, seg = nearest_on_segments(p, segment_table(lines))
     for k, ln in enumerate((line, line2)):
         if len({tuple(q) for q in ln}) < 2:
             continue

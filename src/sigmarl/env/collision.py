@@ -76,12 +76,6 @@ def segments_box_overlap(
     return (in_x & in_y & across).any(-1)
 
 
-def nearest_on_polylines(points: torch.Tensor, lines: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Distance from points [..., P, 2] to polylines [..., L, W, 2] and the closest segment,
-    both [..., L, P]. The step uses `nearest_on_segments` on a table built once per map."""
-    return nearest_on_segments(points, segment_table(lines))
-
-
 def segment_table(lines: torch.Tensor) -> torch.Tensor:
     """What `nearest_on_segments` needs of polylines [..., L, W, 2], precomputed once per map:
     [..., 5, L, W - 1] = segment start x, start y, dx, dy and 1 / |d|^2 (0 for zero-length
@@ -96,8 +90,7 @@ def nearest_on_segments(points: torch.Tensor, table: torch.Tensor) -> tuple[torc
     """Distance from points [..., P, 2] to the polylines of a `segment_table` [..., 5, L, S],
     and the closest segment: both [..., L, P].
 
-    The lean form of `geometry.point_polyline_distance` for the step's hot path: no padding
-    masks, no projected points, and x and y kept apart (reductions over a last dimension of
+    For the step's hot path: no padding masks, no projected points, and x and y kept apart (reductions over a last dimension of
     size 2 cost more than the arithmetic).
     """
     px = points[..., 0].unsqueeze(-2).unsqueeze(-1)  # [..., 1, P, 1]

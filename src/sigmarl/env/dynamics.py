@@ -15,23 +15,14 @@ import torch
 from torch import Tensor
 
 from sigmarl.env.geometry import wrap_angle
+from sigmarl.env.params import DT, VEHICLE
 
-DT = 0.05  # s, sample time
-L_R = 0.08  # m, centre of gravity to rear axle
-WHEELBASE = 0.16  # m
+L_R, WHEELBASE = VEHICLE.l_r, VEHICLE.wheelbase
 
 
 def slip_angle(steering: Tensor, l_r: float = L_R, wheelbase: float = WHEELBASE) -> Tensor:
     """Side-slip angle beta of the centre of gravity for steering angle delta."""
     return torch.atan((l_r / wheelbase) * torch.tan(steering))
-
-
-def yaw_rate(
-    speed: Tensor, steering: Tensor, l_r: float = L_R, wheelbase: float = WHEELBASE
-) -> Tensor:
-    """Heading rate psi' = (v / L) cos(beta) tan(delta)."""
-    beta = slip_angle(steering, l_r, wheelbase)
-    return speed / wheelbase * torch.cos(beta) * torch.tan(steering)
 
 
 def turning_radius(steering: Tensor, l_r: float = L_R, wheelbase: float = WHEELBASE) -> Tensor:

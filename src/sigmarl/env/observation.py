@@ -5,19 +5,18 @@ Pure function of the batched state; every tensor is [E, A, ...].
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import torch
 
 from sigmarl.env.geometry import rotate, to_local, wrap_angle
+from sigmarl.env.params import NORMALISERS, VEHICLE
 
-# Normalisers are constants of the policy, not of the map (spec §3).
-WORLD_SIZE = (4.5, 4.0)  # training world, also on unseen maps
-EGO_SCALE = 1.6  # m
-SPEED_SCALE = 0.8  # m/s
-DIST_SCALE = 0.45  # m
-HEADING_SCALE = 2 * math.pi
+WORLD_SIZE = NORMALISERS.world
+EGO_SCALE = NORMALISERS.ego
+SPEED_SCALE = NORMALISERS.speed
+DIST_SCALE = NORMALISERS.distance
+HEADING_SCALE = NORMALISERS.heading
 
 
 @dataclass(frozen=True)
@@ -43,16 +42,6 @@ class ObsFlags:
         )
 
 
-def observation_size(flags: ObsFlags, n_agents: int) -> int:
-    """Length of one agent's observation vector."""
-    e = flags.ego_view
-    own = (0 if e else 3) + (1 if e else 2) + 2 * flags.n_ref_points
-    own += 1 if flags.distance_to_center_line else 0
-    own += 2 * (1 if flags.distance_to_boundaries else 10)
-    per_other = (8 if flags.vertices else 5) + 2 + (1 if flags.distance_to_agents else 0)
-    return own + min(flags.n_nearest, n_agents - 1) * per_other
-
-
 @dataclass
 class ObsInputs:
     """Everything the observation reads, batched [E, A, ...] in world coordinates."""
@@ -70,8 +59,8 @@ class ObsInputs:
     corners: torch.Tensor  # [E, A, 4, 2]
     neighbours: torch.Tensor  # [E, A, K] indices of the K nearest others, nearest first
     distances: torch.Tensor  # [E, A, A] center-to-center
-    length: float = 0.16
-    width: float = 0.08
+    length: float = VEHICLE.length
+    width: float = VEHICLE.width
 
 
 def _frame(points: torch.Tensor, x: ObsInputs, ego: bool) -> torch.Tensor:

@@ -7,14 +7,7 @@ from dataclasses import dataclass
 
 import torch
 
-MAX_SPEED = 0.8
-DT = 0.05
-REF_WEIGHTS = (1.0 / 1.8, 0.6 / 1.8, 0.2 / 1.8)
-NEAR_BOUNDARY = 0.9 * (0.15 - 0.08) / 2  # 0.0315 m
-DEVIATION_SCALE = (0.15 - 0.08) / 2  # 0.035 m
-NEAR_AGENT = (0.12, 0.24)  # (l + w) / 2 and twice that
-STEER_FREE = math.radians(10)
-STEER_SCALE = math.radians(50)
+from sigmarl.env.params import DT, REWARD, VEHICLE
 
 
 def decay(x: torch.Tensor, a: float, b: float) -> torch.Tensor:
@@ -40,20 +33,20 @@ class RewardInputs:
 
 def reward_terms(x: RewardInputs) -> dict[str, torch.Tensor]:
     """Each term of spec §4 as an [E, A] tensor (before the clamp)."""
-    w = x.pos.new_tensor(REF_WEIGHTS[: x.prev_ref_points.shape[-2]])
+    w = x.pos.new_tensor(REWARD.ref_weights[: x.prev_ref_points.shape[-2]])
     r = x.prev_ref_points - x.prev_pos.unsqueeze(-2)  # [E, A, P, 2]
     step = (x.pos - x.prev_pos).unsqueeze(-2)
-    progress = 0.10 * ((step * r).sum(-1) * w).sum(-1) / (MAX_SPEED * DT)
+    progress = REWARD.progress * ((step * r).sum(-1) * w).sum(-1) / (VEHICLE.max_speed * DT)
     v_bar = (x.vel.unsqueeze(-2) * r).sum(-1).mean(-1)
-    speed = 0.05 * v_bar / MAX_SPEED
+    speed = REWARD.speed * v_bar / VEHICLE.max_speed
     speed = torch.where(v_bar <= 0, 2 * speed, speed)
-    moving = 0.05 * torch.sign(v_bar) * x.vel.norm(dim=-1) / MAX_SPEED
-    near_boundary = -0.20 * decay(x.d_boundary, 0.0, NEAR_BOUNDARY)
+    moving = REWARD.moving * torch.sign(v_bar) * x.vel.norm(dim=-1) / VEHICLE.max_speed
+    near_boundary = REWARD.near_boundary * decay(x.d_boundary, 0.0, REWARD.near_boundary_at)
     eye = torch.eye(x.distances.shape[-1], dtype=torch.bool, device=x.distances.device)
-    near = decay(x.distances, *NEAR_AGENT).masked_fill(eye, 0.0)
-    near_agents = -0.20 * near.sum(-1)
-    deviation = -0.02 * x.d_center / DEVIATION_SCALE
-    steer = -0.02 * ((x.steering - x.prev_steering).abs() - STEER_FREE).clamp(min=0) / STEER_SCALE
+    near = decay(x.distances, *REWARD.near_agent_at).masked_fill(eye, 0.0)
+    near_agents = REWARD.near_agents * near.sum(-1)
+    deviation = REWARD.center_line_deviation * x.d_center / REWARD.deviation_scale
+    steer = REWARD.steering_change * ((x.steering - x.prev_steering).abs() - REWARD.steering_free).clamp(min=0) / REWARD.steering_scale
     return {
         "progress": progress,
         "speed": speed,
@@ -62,8 +55,8 @@ def reward_terms(x: RewardInputs) -> dict[str, torch.Tensor]:
         "near_agents": near_agents,
         "center_line_deviation": deviation,
         "steering_change": steer,
-        "agent_collision": -x.agent_collision.to(x.pos.dtype),
-        "lane_collision": -x.lane_collision.to(x.pos.dtype),
+        "agent_collision": REWARD.agent_collision * x.agent_collision.to(x.pos.dtype),
+        "lane_collision": REWARD.lane_collision * x.lane_collision.to(x.pos.dtype),
     }
 
 

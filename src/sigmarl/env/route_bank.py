@@ -21,10 +21,11 @@ from __future__ import annotations
 import torch
 
 from sigmarl.env.collision import segment_table
+from sigmarl.env.params import VEHICLE
 from sigmarl.maps.model import RoadMap
 
 CENTER = 0
-HALF_DIAGONAL = (0.16**2 + 0.08**2) ** 0.5 / 2  # m: every point of a vehicle's box is this close to its center
+HALF_DIAGONAL = VEHICLE.half_diagonal
 
 
 def _pad(polylines: list[torch.Tensor], n: int) -> torch.Tensor:

@@ -10,8 +10,6 @@ kinematic single-track model runs on our own state tensors.
 
 from __future__ import annotations
 
-import math
-
 import torch
 from vmas.simulator.core import Agent, Box, World
 from vmas.simulator.scenario import BaseScenario
@@ -25,15 +23,14 @@ from sigmarl.env.collision import (
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import rect_corners
 from sigmarl.env.observation import ObsFlags, ObsInputs, build_observation
+from sigmarl.env.params import DT, VEHICLE
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
 from sigmarl.env.route_bank import CENTER, HALF_DIAGONAL, RouteBank
 from sigmarl.env.spawn import sample_spawns, spawn_index_range
 from sigmarl.maps.model import RoadMap
 
-LENGTH, WIDTH = 0.16, 0.08
-MAX_SPEED = 0.8
-MAX_STEER = math.radians(35)
-DT = 0.05
+LENGTH, WIDTH = VEHICLE.length, VEHICLE.width
+MAX_SPEED, MAX_STEER = VEHICLE.max_speed, VEHICLE.max_steering
 # Windows of points around an agent's progress index (spacing 0.08 m). Boundary distances and
 # contacts use windows of raw boundary segments instead (RouteBank.boundary_window_table).
 CENTER_WINDOW = (-3, 8)  # progress search: an agent moves at most 0.04 m per step

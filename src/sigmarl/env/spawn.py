@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import torch
 
+from sigmarl.env.params import VEHICLE
 from sigmarl.env.route_bank import RouteBank
 from sigmarl.errors import SigmarlError
 from sigmarl.maps.model import RESAMPLE_STEP
 
-MIN_GAP = 1.2 * (0.16**2 + 0.08**2) ** 0.5  # 1.2 x vehicle diagonal = 0.2147 m
+MIN_GAP = 1.2 * VEHICLE.diagonal  # 0.2147 m
 MAX_TRIES = 200
 
 
