@@ -77,7 +77,7 @@ def test_far_off_center_line_on_a_cpm_two_lane_curve_is_flagged(env_factory):
     assert sum(oracle) >= 10 and len(oracle) - sum(oracle) >= 5  # CPM has such curves
     assert sc.lane_collision[:, 0].tolist() == oracle
     # Among them, touching vehicles 0.2 m off their center line (the case the issue found).
-    far = (sc.d_center[:, 0] >= 0.19).tolist()
+    far = (sc.geo.d_center[:, 0] >= 0.19).tolist()
     assert sum(hit and off for hit, off in zip(oracle, far, strict=True)) >= 5
 
 
@@ -98,7 +98,7 @@ def test_a_corner_grazing_a_sharp_vertex_is_flagged(env_factory):
     assert oracle == [True, False, False]
     assert sc.lane_collision[:, 0].tolist() == oracle
     # The left boundary distance of the clear pose is the tip's: 0.0395 - 0.04 + 0.001 = 0.0005 m.
-    assert float(sc.d_side[1, 0, 0]) == pytest.approx(0.0005, abs=1e-6)
+    assert float(sc.geo.d_side[1, 0, 0]) == pytest.approx(0.0005, abs=1e-6)
 
 
 MAPS = ["cpm", "cpm_intersection", "intersection", "on_ramp", "roundabout"]
@@ -135,7 +135,7 @@ def test_shapely_agrees_on_random_poses_near_boundaries(env_factory, name):
         routes.append(r)
     sc = place(env_factory, road_map, routes, poses, headings)
     flags = sc.lane_collision[:, 0].tolist()
-    d_side = sc.d_side[:, 0].double().numpy()
+    d_side = sc.geo.d_side[:, 0].double().numpy()
     checked = hits = 0
     for k, (p, h, r) in enumerate(zip(poses, headings, routes, strict=True)):
         shape = box(*p, h)

@@ -72,3 +72,19 @@ def test_training_evaluation_and_tags_agree_on_the_label(tmp_path) -> None:
     for run_id in (result.run_id, eval_run):
         tags = client.get_run(run_id).data.tags
         assert tags["model"] == "M1" and tags["obs"] == PAPER["M1"]
+
+
+def test_a_checkpoint_from_an_older_sigmarl_resumes() -> None:
+    # A run started before a knob existed (or while one that is gone still did) must resume:
+    # only settings that differ from what that run did count.
+    from omegaconf import OmegaConf
+
+    from sigmarl.training.loop import config_changes
+
+    cfg = compose_config(["ppo=smoke"])
+    saved = OmegaConf.to_container(cfg, resolve=True)
+    saved["env"]["mode"] = "train"  # a knob since removed
+    del saved["ppo"]["entropy_coef"]  # a knob added since, at its default
+    assert config_changes(saved, cfg) == []
+    changed = compose_config(["ppo=smoke", "ppo.entropy_coef=0.01", "ppo.lr=0.001", "threads=2"])
+    assert config_changes(saved, changed) == ["ppo.entropy_coef", "ppo.lr"]  # threads may change

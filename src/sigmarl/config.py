@@ -61,10 +61,11 @@ class ObsConfig:
 
 @dataclass
 class EnvConfig:
+    """The training environment (evaluation sets its own agent counts, mode and length from
+    `eval.*` and the scenarios; the number of training environments is `ppo.num_envs`)."""
+
     n_agents: int = 4
-    mode: str = "train"  # train | test
-    max_steps: int = 128  # episode length (train: 128, test: 1200)
-    num_envs: int = 32
+    max_steps: int = 128  # training episode length (evaluation: eval.steps)
     # Where vehicles start (spec section 6): training on non-loop routes from spawn_start_m up
     # to spawn_end_fraction of the route; testing anywhere but spawn_margin_m at either end.
     spawn_start_m: float = 0.5
@@ -84,7 +85,7 @@ class NetworkConfig:
 class PPOConfig:
     iterations: int = 250
     frames_per_iteration: int = 4096  # num_envs x rollout steps (128, one training episode)
-    num_envs: int = 32  # parallel environments while training (env.num_envs is for other uses)
+    num_envs: int = 32  # parallel environments while training
     epochs: int = 60
     minibatch_size: int = 512
     lr: float = 2e-4

@@ -97,11 +97,11 @@ def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: i
     if n_agents < 1:
         raise SigmarlError(f"env.n_agents must be at least 1, got {n_agents}")
     if mode not in ("train", "test"):
-        raise SigmarlError(f"env.mode must be 'train' or 'test', got {mode!r}")
+        raise SigmarlError(f"mode must be 'train' or 'test', got {mode!r}")
     if noise < 0:
         raise SigmarlError(f"obs.noise must be >= 0 (total width of the uniform noise), got {noise}")
     if num_envs < 1 or max_steps < 1:
-        raise SigmarlError(f"env.num_envs and env.max_steps must be positive, got {num_envs}, {max_steps}")
+        raise SigmarlError(f"the number of environments and env.max_steps must be positive, got {num_envs}, {max_steps}")
     if flags.n_nearest < 0 or flags.n_ref_points < 1 or flags.n_ref_points > 3:
         raise SigmarlError("obs.n_nearest must be >= 0 and obs.n_ref_points in 1..3")
 
@@ -109,9 +109,9 @@ def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: i
 def make_env(
     cfg,
     *,
-    num_envs: int | None = None,
+    num_envs: int = 32,
     n_agents: int | None = None,
-    mode: str | None = None,
+    mode: str = "train",
     max_steps: int | None = None,
     map_cfg=None,
     road_map: RoadMap | None = None,
@@ -123,9 +123,7 @@ def make_env(
     A time-out is reported as `truncated` (bootstrapped by GAE), never as `terminated`.
     """
     env_cfg = cfg.env
-    num_envs = int(num_envs if num_envs is not None else env_cfg.num_envs)
     n_agents = int(n_agents if n_agents is not None else env_cfg.n_agents)
-    mode = mode or env_cfg.mode
     max_steps = int(max_steps if max_steps is not None else env_cfg.max_steps)
     seed = int(seed if seed is not None else cfg.seed)
     device = device or cfg.device

@@ -10,6 +10,8 @@ kinematic single-track model runs on our own state tensors.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
+
 import torch
 from vmas.simulator.core import Agent, Box, World
 from vmas.simulator.scenario import BaseScenario
@@ -38,6 +40,30 @@ LINE_WINDOW = (-6, 7)  # center-line distance and reference points: +-0.48 m of 
 SIDE_WINDOW = (-1, 4)  # observed boundary points: 1 behind .. 3 ahead of the closest
 # Margin of the exactness check against float32 rounding of the distances it adds up.
 _REACH_MARGIN = 1e-3  # m
+
+
+@dataclass
+class EgoGeometry:
+    """What observation, reward and collisions read of each agent's own pose, [E, A, ...]
+    (or [rows, ...] in the spawn table)."""
+
+    corners: torch.Tensor  # [E, A, 4, 2]
+    d_center: torch.Tensor  # [E, A] distance to the own center line
+    d_side: torch.Tensor  # [E, A, 2] DB: min(center distance - half width, corner distances)
+    ref_points: torch.Tensor  # [E, A, P, 2] short-term reference points
+    side_hit: torch.Tensor  # [E, A, 2] touching or beyond the left / right corridor boundary
+    side_points: torch.Tensor  # [E, A, 2, 5, 2] observed corridor points, 1 behind .. 3 ahead
+
+    def take(self, rows: torch.Tensor) -> EgoGeometry:
+        return EgoGeometry(*(getattr(self, f.name)[rows] for f in fields(self)))
+
+    def where(self, mask: torch.Tensor, other: EgoGeometry) -> EgoGeometry:
+        """This geometry where mask [E, A] is True, `other`'s elsewhere."""
+        out = []
+        for f in fields(self):
+            mine = getattr(self, f.name)
+            out.append(torch.where(mask.view(*mask.shape, *(1,) * (mine.dim() - 2)), mine, getattr(other, f.name)))
+        return EgoGeometry(*out)
 
 
 def _proven(probe: torch.Tensor, center: torch.Tensor, dist: torch.Tensor, reach: float) -> torch.Tensor:
@@ -200,8 +226,7 @@ class TrafficScenario(BaseScenario):
         d = (pts - self.pos.unsqueeze(-2)).norm(dim=-1)
         self.index = idx.gather(-1, d.argmin(-1, keepdim=True)).squeeze(-1)
 
-    def _ego_geometry(self, pos, heading, route, index) -> dict[str, torch.Tensor]:
-        """What observation, reward and collisions read of each agent's own pose, [E, A, ...]."""
+    def _ego_geometry(self, pos, heading, route, index) -> EgoGeometry:
         b = self.bank
         corners = rect_corners(pos, heading, LENGTH, WIDTH)  # [E, A, 4, 2]
         rows = b.row(route, index)
@@ -209,16 +234,14 @@ class TrafficScenario(BaseScenario):
         d_center = nearest_on_segments(pos.unsqueeze(-2), self._segment_table[rows])[0][..., CENTER, 0]
         probe = torch.cat([pos.unsqueeze(-2), corners], dim=-2)  # [E, A, 5, 2]
         sides, side_hit = self._boundaries(probe, pos, heading, b.center[route, index], rows)
-        return {
-            "corners": corners,
-            "d_center": d_center,
-            # DB: min(center distance - half width, corner distances), per side.
-            "d_side": torch.minimum(sides[..., 0] - WIDTH / 2, sides[..., 1:].min(-1).values),  # [E, A, 2]
-            "ref_points": lines[..., CENTER, self._ref_slots, :],
-            "side_hit": side_hit,  # [E, A, 2]
-            # Observed corridor points: 1 behind .. 3 ahead of the closest, per side: [E, A, 2, 5, 2].
-            "side_points": self._side_table[rows],
-        }
+        return EgoGeometry(
+            corners=corners,
+            d_center=d_center,
+            d_side=torch.minimum(sides[..., 0] - WIDTH / 2, sides[..., 1:].min(-1).values),
+            ref_points=lines[..., CENTER, self._ref_slots, :],
+            side_hit=side_hit,
+            side_points=self._side_table[rows],
+        )
 
     def _boundaries(self, probe, pos, heading, center, rows) -> tuple[torch.Tensor, torch.Tensor]:
         """Distances from the probes [E, A, 5, 2] to each corridor boundary [E, A, 2, 5], and
@@ -259,8 +282,7 @@ class TrafficScenario(BaseScenario):
 
     def _geometry(self) -> None:
         """Everything observation, reward and info read, for all agents at once."""
-        for name, value in self._ego_geometry(self.pos, self.heading, self.route, self.index).items():
-            setattr(self, name, value)
+        self.geo = self._ego_geometry(self.pos, self.heading, self.route, self.index)
         self._neighbour_geometry()
 
     def _neighbour_geometry(self) -> None:
@@ -269,7 +291,7 @@ class TrafficScenario(BaseScenario):
         masked = self.distances + self._eye_big
         self.neighbours = masked.topk(k, dim=-1, largest=False, sorted=True).indices
 
-    def _spawn_table(self) -> dict[str, torch.Tensor]:
+    def _spawn_table(self) -> EgoGeometry:
         """Ego geometry of a vehicle standing on each center-line point, heading along the
         route: [R * M, ...] rows (`RouteBank.row`). Spawns are such poses, so a respawn reads
         its geometry here instead of recomputing it (a second geometry pass would cost as much
@@ -280,25 +302,20 @@ class TrafficScenario(BaseScenario):
 
     def _spawn_geometry(self, place: torch.Tensor) -> None:
         """Geometry after the agents where `place` [E, A] were respawned (see `_spawn_table`)."""
-        everyone = bool(place.all())  # always so at the first reset, before any geometry exists
-        rows = self.bank.row(self.route, self.index)
-        for name, table in self.spawn_table.items():
-            fresh = table[rows]
-            if not everyone:
-                m = place.view(*place.shape, *(1,) * (fresh.dim() - 2))
-                fresh = torch.where(m, fresh, getattr(self, name))
-            setattr(self, name, fresh)
+        fresh = self.spawn_table.take(self.bank.row(self.route, self.index))
+        # Everyone is respawned at the first reset, before any geometry exists.
+        self.geo = fresh if bool(place.all()) else fresh.where(place, self.geo)
         self._neighbour_geometry()
 
     def _record_step_end(self) -> None:
         """Metrics of the state the step ended in, and its poses, kept before anyone respawns
         (infos report them; rendering draws test-mode collisions where they happened)."""
-        self.step_d_center, self.step_speed = self.d_center, self.speed.abs()
+        self.step_d_center, self.step_speed = self.geo.d_center, self.speed.abs()
         self.step_pos, self.step_heading = self.pos, self.heading
 
     def _collisions(self) -> None:
         self.agent_collision = pairwise_box_overlap(self.pos, self.heading, LENGTH, WIDTH).any(-1)
-        self.lane_collision = self.side_hit.any(-1)
+        self.lane_collision = self.geo.side_hit.any(-1)
 
     def _past_exit(self) -> torch.Tensor:
         """Non-loop agents whose center has passed the route's last real point."""
@@ -312,10 +329,10 @@ class TrafficScenario(BaseScenario):
     def _observe(self) -> None:
         x = ObsInputs(
             pos=self.pos, heading=self.heading, speed=self.speed, vel=self.vel,
-            ref_points=self.ref_points, d_center=self.d_center,
-            d_left=self.d_side[..., 0], d_right=self.d_side[..., 1],
-            left_points=self.side_points[..., 0, :, :], right_points=self.side_points[..., 1, :, :],
-            corners=self.corners, neighbours=self.neighbours, distances=self.distances,
+            ref_points=self.geo.ref_points, d_center=self.geo.d_center,
+            d_left=self.geo.d_side[..., 0], d_right=self.geo.d_side[..., 1],
+            left_points=self.geo.side_points[..., 0, :, :], right_points=self.geo.side_points[..., 1, :, :],
+            corners=self.geo.corners, neighbours=self.neighbours, distances=self.distances,
             length=LENGTH, width=WIDTH,
         )
         obs = build_observation(x, self.flags)
@@ -323,7 +340,7 @@ class TrafficScenario(BaseScenario):
             u = torch.rand(obs.shape, generator=self.noise_rng, device=obs.device)
             obs = obs + (u - 0.5) * self.noise
         self.obs = obs
-        self.obs_ref_points = self.ref_points  # what the next reward measures progress against
+        self.obs_ref_points = self.geo.ref_points  # what the next reward measures progress against
 
     def _refresh(self) -> None:
         """Observation of the current state (after resets)."""
@@ -383,8 +400,8 @@ class TrafficScenario(BaseScenario):
         self.terms = reward_terms(
             RewardInputs(
                 pos=self.pos, prev_pos=prev_pos, vel=self.vel, prev_ref_points=prev_ref,
-                d_boundary=self.d_side.min(-1).values,
-                distances=self.distances, d_center=self.d_center,
+                d_boundary=self.geo.d_side.min(-1).values,
+                distances=self.distances, d_center=self.geo.d_center,
                 steering=self.steering, prev_steering=self.prev_steering,
                 agent_collision=self.agent_collision, lane_collision=self.lane_collision,
             )

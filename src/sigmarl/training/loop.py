@@ -92,6 +92,23 @@ def _device(name: str) -> torch.device:
     return device
 
 
+def config_changes(saved: dict[str, Any], cfg: DictConfig) -> list[str]:
+    """Training settings in which `cfg` differs from a checkpoint's config. A knob the saved
+    config lacks (added to sigmarl since) counts only if set away from its default, and one
+    that no longer exists cannot change anything: a checkpoint from an older sigmarl resumes."""
+    from sigmarl.config import Config
+
+    old, new = flatten(saved), flatten(OmegaConf.to_container(cfg, resolve=True))
+    default = flatten(OmegaConf.to_container(OmegaConf.structured(Config)))
+    changed = []
+    for key in sorted(new):
+        if not key.startswith(RESUME_MUST_MATCH) or key == "ppo.stop_after":
+            continue
+        if new[key] != old.get(key, default.get(key)):
+            changed.append(key)
+    return changed
+
+
 def _resume_point(cfg: DictConfig, run_dir: Path, device: torch.device) -> dict[str, Any] | None:
     path = run_dir / ckpt.RESUME_FILE
     if not cfg.resume:
@@ -104,11 +121,10 @@ def _resume_point(cfg: DictConfig, run_dir: Path, device: torch.device) -> dict[
             )
         return None
     state = ckpt.load(path, device)
-    old, new = flatten(state["config"]), flatten(OmegaConf.to_container(cfg, resolve=True))
-    changed = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
-    changed = [k for k in changed if k.startswith(RESUME_MUST_MATCH) and k != "ppo.stop_after"]
+    changed = config_changes(state["config"], cfg)
     if changed:
-        diffs = ", ".join(f"{k}: {old.get(k)} -> {new.get(k)}" for k in changed[:5])
+        old, new = flatten(state["config"]), flatten(OmegaConf.to_container(cfg, resolve=True))
+        diffs = ", ".join(f"{k}: {old.get(k, '(default)')} -> {new.get(k)}" for k in changed[:5])
         raise SigmarlError(f"cannot resume {path} with a different config ({diffs})")
     return state
 
