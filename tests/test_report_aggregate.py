@@ -57,16 +57,19 @@ def test_mean_ci_of_three_values_by_hand():
     assert math.isnan(mean_ci([3.0])[1])
 
 
-def test_collision_rates_in_percent_with_ci():
-    # CR_total 1, 2, 3 % of steps: mean 2 %, s = 1, half-width 4.302653 / sqrt(3) = 2.4841.
+def test_collision_rates_in_percent_with_interval():
+    # CR_total 1, 2, 3 % of steps, one seed: mean 2 %. The bootstrap resamples the three
+    # simulations; "all three at the minimum" has probability 1/27 = 3.7% > 2.5%, so the
+    # 95% percentile interval runs from the smallest to the largest value: [1, 3] %.
     rows = _rows(CR_AA=[0.01, 0.02, 0.03], CD=[2.0, 4.0, 9.0])
     s = aggregate(rows)
     cr = _cell(s, "CR_total")
     assert cr["mean"] == pytest.approx(2.0)
-    assert cr["ci"] == pytest.approx(2.4841, abs=1e-4)
+    assert (cr["ci_low"], cr["ci_high"]) == pytest.approx((1.0, 3.0))
     assert cr["unit"] == "percent" and cr["n"] == 3 and not cr["trimmed"]
+    assert cr["std"] == pytest.approx(1.0)
     cd = _cell(s, "CD")
-    assert cd["mean"] == pytest.approx(5.0) and cd["ci"] == pytest.approx(8.9567, abs=1e-4)
+    assert cd["mean"] == pytest.approx(5.0) and (cd["ci_low"], cd["ci_high"]) == pytest.approx((2.0, 9.0))
 
 
 def test_trim_drops_the_best_and_worst_simulation_for_collision_rates_only():
@@ -89,13 +92,14 @@ def test_trim_drops_the_best_and_worst_simulation_for_collision_rates_only():
 
 
 def test_trim_is_per_seed_and_skips_tiny_evaluations():
-    # Seed 0: 0, 5, 10 % -> 5 % (one left);  seed 1 has only two simulations: kept whole.
+    # Seed 0: 0, 5, 10 % -> 5 % (one left);  seed 1 has only two simulations: kept whole,
+    # mean 3 %. Seeds weigh equally: (5 + 3) / 2 = 4 % (pooled it would be 11/3 %).
     rows = pd.concat(
         [_rows(seed=0, CR_AA=[0.0, 0.05, 0.10]), _rows(seed=1, CR_AA=[0.02, 0.04])],
         ignore_index=True,
     )
     cr = _cell(aggregate(rows, trim=True), "CR_total")
-    assert cr["n"] == 3 and cr["mean"] == pytest.approx((5 + 2 + 4) / 3)
+    assert cr["n"] == 3 and cr["n_seeds"] == 2 and cr["mean"] == pytest.approx(4.0)
 
 
 def test_seeds_are_pooled_and_their_spread_reported():

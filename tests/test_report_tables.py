@@ -99,11 +99,12 @@ def test_ties_as_printed_are_all_bold():
 def test_ci_and_paper_in_cells():
     table = make_table(hand_rows(), paper=paper_values(MODELS))
     rows = body(to_markdown(table, ci=True))
-    # CD of M0: 1.99, 2.00, 2.01 -> s = 0.01, half = 4.302653 · 0.01 / sqrt(3) = 0.0248;
-    # the paper's CPM M0 CD is 2.331 real cm.
+    # CD of M0: 1.99, 2.00, 2.01 (one seed): a resample of all three at either end has
+    # probability 1/27 > 2.5%, so the interval is [1.99, 2.01]; the paper's CPM M0 CD is
+    # 2.331 real cm.
     cd = next(r for r in rows if r[1] == "CD (cm)")
-    assert cd[2] == "2.00 ± 0.02 (2.33)"
-    assert rows[0][2] == "0.50 ± 0.00 (0.04)"  # collision rates identical in all simulations
+    assert cd[2] == "2.00 [1.99, 2.01] (2.33)"
+    assert rows[0][2] == "0.50 [0.50, 0.50] (0.04)"  # identical in all simulations: no width
 
 
 def test_latex_booktabs_and_escaping():
@@ -150,6 +151,7 @@ def test_writes_the_table_files(tmp_path):
     report = build_report(hand_rows(), out_dir=tmp_path, latex=True, figures=False)
     assert {p.name for p in tmp_path.iterdir()} == {
         "table.md", "table.csv", "summary.csv", "composite_scores.csv", "table.tex",
+        "improvement.csv", "aggregate_scores.csv", "statistics.md",
     }  # fmt: skip
     assert report.paths["markdown"].read_text() == report.markdown
     assert report.table.values.shape == (len(SCENARIOS) * 6, len(MODELS))

@@ -94,14 +94,20 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> None:
     from sigmarl.compose import compose_config
-    from sigmarl.report.study import make_report
+    from sigmarl.report.study import make_report, make_report_from_folder
 
     cfg = compose_config(args.overrides)
     models = args.models.split(",") if args.models else None
-    report = make_report(cfg, out_dir=Path(args.out) if args.out else None, latex=args.latex,
-                         trim=args.trim, compare_paper=args.compare_paper, models=models,
-                         ci=args.ci, figures=not args.no_figures, animation_steps=args.animations)
+    options = dict(out_dir=Path(args.out) if args.out else None, latex=args.latex, trim=args.trim,
+                   compare_paper=args.compare_paper, models=models, ci=args.ci,
+                   figures=not args.no_figures, animation_steps=args.animations)
+    if args.source:
+        report = make_report_from_folder(Path(args.source), cfg, **options)
+    else:
+        report = make_report(cfg, **options)
     print(report.markdown)  # the table's notes are part of it
+    if report.statistics:
+        print(report.statistics)
     print("wrote " + ", ".join(str(p) for p in report.paths.values()))
 
 
@@ -138,9 +144,13 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--latex", action="store_true", help="also write table.tex (booktabs)")
     rp.add_argument("--trim", action="store_true", help="drop the best and worst simulation for collision rates, as the paper did")
     rp.add_argument("--compare-paper", action="store_true", help="show the paper's numbers beside ours")
-    rp.add_argument("--ci", action="store_true", help="show 95%% confidence half-widths in the cells")
+    rp.add_argument("--ci", action="store_true",
+                    help="show 95%% bootstrap intervals (over seeds and simulations) in the cells")
     rp.add_argument("--models", help="comma-separated models to compare (default: all evaluated)")
-    rp.add_argument("--out", help="output folder (default: reports/<experiment>)")
+    rp.add_argument("--from", dest="source", metavar="FOLDER",
+                    help="rebuild from a results folder (<model>/seed<k>/ with evaluation_rows.csv, "
+                         "metrics.csv) instead of reading MLflow")
+    rp.add_argument("--out", help="output folder (default: reports/<experiment>, or reports/<FOLDER name>)")
     rp.add_argument("--no-figures", action="store_true", help="tables only")
     rp.add_argument("--animations", type=int, nargs="?", const=200, default=0, metavar="STEPS",
                     help="also one GIF per scenario of M0 driving (default 200 steps)")

@@ -1,17 +1,20 @@
-"""Per-simulation evaluation rows -> per (scenario, model, metric) means with 95% CIs.
+"""Per-simulation evaluation rows -> per (scenario, model, metric) estimates with 95% intervals.
 
-Simulations of all seeds are pooled for the mean and its confidence interval; the
-spread of the per-seed means is reported beside it, because pooled simulations of one
-seed share that seed's policy and so understate the seed-to-seed variation.
+A cell's estimate is the mean over seeds of each seed's mean over simulations; its interval
+is a two-level bootstrap over seeds and their simulations (`sigmarl.report.bootstrap`), so
+it reflects the seed-to-seed variation that pooled simulations would hide.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
+import numpy as np
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
+from sigmarl.report import bootstrap as bs
 from sigmarl.report.stats import mean_ci
 from sigmarl.study import METRIC_COLUMNS, MODELS, SCENARIOS
 
@@ -26,7 +29,8 @@ UNITS = {
     "CS": "1",
 }
 SUMMARY_COLUMNS = [
-    "scenario", "model", "metric", "unit", "mean", "ci", "std", "n", "n_seeds", "seed_std", "trimmed",
+    "scenario", "model", "metric", "unit", "mean", "ci_low", "ci_high", "std", "n", "n_seeds", "seed_std",
+    "trimmed",
 ]  # fmt: skip
 
 
@@ -99,47 +103,108 @@ def trim_collisions(rows: pd.DataFrame) -> pd.DataFrame:
     return rows
 
 
-def aggregate(
+@dataclass
+class Cell:
+    """One (scenario, model): its rows per seed in report units, estimates and replicates.
+
+    groups: per seed (ascending), an [n_sims, len(METRIC_COLUMNS)] array (collision rates in
+    percent; NaN where trimmed); point: [K] estimates; replicates: [B, S, K] bootstrap
+    replicates of the seeds' means (S seed slots drawn per replicate).
+    """
+
+    scenario: str
+    model: str
+    seeds: list
+    groups: list[np.ndarray]
+    point: np.ndarray
+    replicates: np.ndarray
+
+    def seed_means(self) -> np.ndarray:
+        return bs.seed_means(self.groups)
+
+
+def scaled(rows: pd.DataFrame) -> pd.DataFrame:
+    """The metric columns in report units: collision rates in percent."""
+    out = rows[METRIC_COLUMNS].astype(float)
+    out[list(COLLISION_COLUMNS)] *= 100.0
+    return out
+
+
+def seed_groups(rows: pd.DataFrame) -> tuple[list, list[np.ndarray]]:
+    """The seeds of one cell's rows (ascending) and their [n_sims, K] metric arrays."""
+    ordered = rows.sort_values(["seed", "simulation"], kind="stable")
+    values = scaled(ordered).to_numpy()
+    seeds = list(dict.fromkeys(ordered["seed"]))
+    keys = ordered["seed"].to_numpy()
+    return seeds, [values[keys == s] for s in seeds]
+
+
+def cells(
     rows: pd.DataFrame,
     models: list[str] | None = None,
     *,
     trim: bool = False,
-    level: float = 0.95,
-) -> pd.DataFrame:
-    """One row per (scenario, model, metric): mean, CI half-width, std, n, per-seed spread.
-
-    Collision rates come in as fractions of steps and go out in percent. Column `ci` is
-    the half-width of the `level` t-interval over the pooled simulations; `seed_std` is
-    the sample standard deviation of the per-seed means (NaN with one seed).
-    """
+    n_boot: int = bs.N_BOOT,
+) -> list[Cell]:
+    """Every (scenario, model) with rows, scenarios and models in report order."""
     rows = validate_rows(rows)
     models = model_order(rows, models)
     rows = rows[rows["model"].isin(models)]
     if trim:
         rows = trim_collisions(rows)
-    records = []
+    out = []
     for scenario in scenario_order(rows):
         for model in models:
             g = rows[(rows["scenario"] == scenario) & (rows["model"] == model)]
             if g.empty:
                 continue
-            for metric in METRIC_COLUMNS:
-                values = g[metric] * (100.0 if metric in COLLISION_COLUMNS else 1.0)
-                mean, half, std, n = mean_ci(values, level)
-                seed_means = values.groupby(g["seed"]).mean().dropna()
-                records.append(
-                    {
-                        "scenario": scenario,
-                        "model": model,
-                        "metric": metric,
-                        "unit": UNITS[metric],
-                        "mean": mean,
-                        "ci": half,
-                        "std": std,
-                        "n": n,
-                        "n_seeds": len(seed_means),
-                        "seed_std": seed_means.std(ddof=1) if len(seed_means) > 1 else math.nan,
-                        "trimmed": bool(trim and metric in COLLISION_COLUMNS),
-                    }
-                )
+            seeds, groups = seed_groups(g)
+            reps = bs.replicate_means(groups, n_boot, bs.rng_for("cell", scenario, model, trim))
+            out.append(Cell(scenario, model, seeds, groups, bs.point_estimate(groups), reps))
+    return out
+
+
+def summarise(cell_list: list[Cell], *, trim: bool = False, level: float = bs.LEVEL) -> pd.DataFrame:
+    """One row per (scenario, model, metric) of `cells`: estimate, interval, spread, counts."""
+    records = []
+    for c in cell_list:
+        lo, hi = bs.percentile_interval(bs.mean_over_seeds(c.replicates), level)
+        per_seed = c.seed_means()
+        for k, metric in enumerate(METRIC_COLUMNS):
+            _, _, std, n = mean_ci(np.concatenate([g[:, k] for g in c.groups]), level)
+            seed_means = per_seed[:, k][np.isfinite(per_seed[:, k])]
+            records.append(
+                {
+                    "scenario": c.scenario,
+                    "model": c.model,
+                    "metric": metric,
+                    "unit": UNITS[metric],
+                    "mean": float(c.point[k]),
+                    "ci_low": float(lo[k]),
+                    "ci_high": float(hi[k]),
+                    "std": std,
+                    "n": n,
+                    "n_seeds": len(seed_means),
+                    "seed_std": float(seed_means.std(ddof=1)) if len(seed_means) > 1 else math.nan,
+                    "trimmed": bool(trim and metric in COLLISION_COLUMNS),
+                }
+            )
     return pd.DataFrame(records, columns=SUMMARY_COLUMNS)
+
+
+def aggregate(
+    rows: pd.DataFrame,
+    models: list[str] | None = None,
+    *,
+    trim: bool = False,
+    level: float = bs.LEVEL,
+    n_boot: int = bs.N_BOOT,
+) -> pd.DataFrame:
+    """One row per (scenario, model, metric): estimate, `level` interval, std, n, seed spread.
+
+    Collision rates come in as fractions of steps and go out in percent. `mean` is the mean
+    over seeds of the seeds' means over simulations; `ci_low`/`ci_high` the two-level
+    bootstrap percentile interval; `std` and `n` are over the pooled simulations; `seed_std`
+    is the sample standard deviation of the per-seed means (NaN with one seed).
+    """
+    return summarise(cells(rows, models, trim=trim, n_boot=n_boot), trim=trim, level=level)

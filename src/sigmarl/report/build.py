@@ -7,11 +7,22 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.report.aggregate import aggregate, model_order, scenario_order, validate_rows
+from sigmarl.report.aggregate import cells, model_order, scenario_order, summarise, validate_rows
 from sigmarl.report.composite import composite_scores
 from sigmarl.report.paper import paper_values
-from sigmarl.report.tables import ResultTable, build_table, to_csv_frame, to_latex, to_markdown
+from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
+from sigmarl.report.tables import (
+    ResultTable,
+    build_table,
+    statistics_markdown,
+    to_csv_frame,
+    to_latex,
+    to_markdown,
+)
 from sigmarl.study import MODELS
+
+# Fixed formatting of every CSV's floats: the same rows give byte-identical files.
+FLOAT_FORMAT = "%.10g"
 
 
 @dataclass
@@ -21,7 +32,10 @@ class Report:
     markdown: str
     table: ResultTable
     summary: pd.DataFrame  # one row per (scenario, model, metric), see `aggregate`
-    composite: pd.DataFrame  # scenario, model, CS, note
+    composite: pd.DataFrame  # scenario, model, CS, note, ci_low, ci_high
+    improvement: pd.DataFrame  # see `scores.improvement`
+    aggregates: pd.DataFrame  # see `scores.aggregate_scores`
+    statistics: str  # Markdown of the two frames above
     paths: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
@@ -37,12 +51,13 @@ def _notes(
 ) -> list[str]:
     """The lines under the table that say what the numbers are."""
     n = summary["n"][summary["metric"] == "AS"]
-    seeds = summary["n_seeds"].max()
-    sims = f"{n.min()}" if n.min() == n.max() else f"{n.min()}–{n.max()}"
+    n_seeds = summary["n_seeds"][summary["metric"] == "AS"]
+    sims = _span(n)
+    seeds = _span(n_seeds)
     notes = [
-        f"Mean over {sims} simulations per cell"
-        + (f" ({seeds} seeds pooled)" if seeds > 1 else "")
-        + (" ± 95% CI half-width" if ci else "")
+        (f"Mean over {seeds} seeds of each seed's mean over its simulations ({sims} simulations per cell)"
+         if n_seeds.max() > 1 else f"Mean over {sims} simulations per cell")
+        + (" [95% bootstrap interval over seeds and simulations]" if ci else "")
         + "; collision rates in % of steps, CD in cm, AS in m/s; best per row in bold."
     ]
     if trim:
@@ -69,6 +84,10 @@ def _notes(
     return notes
 
 
+def _span(counts: pd.Series) -> str:
+    return f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}–{counts.max()}"
+
+
 def build_report(
     rows: pd.DataFrame,
     models: list[str] | None = None,
@@ -80,6 +99,7 @@ def build_report(
     curves: pd.DataFrame | None = None,
     ci: bool = False,
     figures: bool = True,
+    extra_notes: list[str] | None = None,
 ) -> Report:
     """Aggregate evaluation rows into the paper's Table I and write it to `out_dir`.
 
@@ -87,19 +107,30 @@ def build_report(
     (fractions of steps), CD (cm) and AS (m/s); models: the columns, in order (default:
     every model in the rows); trim: drop each evaluation's best and worst simulation from
     the collision rates; compare_paper: show the paper's numbers in parentheses; ci: show
-    95% CI half-widths; curves: (model, iteration, reward[, seed]) for the training plot.
+    95% bootstrap intervals; curves: (model, iteration, reward[, seed]) for the training plot.
 
-    Writes table.md, table.csv, summary.csv, composite_scores.csv, table.tex (latex),
-    distributions.png and training_curves.png (figures; curves given).
+    Estimates weigh seeds equally and intervals come from a two-level bootstrap (seeds, then
+    simulations; `sigmarl.report.bootstrap`), so the same rows give byte-identical files.
+
+    Writes table.md, table.csv, summary.csv, composite_scores.csv (with CS intervals),
+    improvement.csv and aggregate_scores.csv with statistics.md (`sigmarl.report.scores`),
+    table.tex (latex), distributions.png and training_curves.png (figures; curves given).
     """
     rows = validate_rows(rows)
     models = model_order(rows, models)
-    summary = aggregate(rows, models, trim=trim)
+    cell_list = cells(rows, models, trim=trim)
+    summary = summarise(cell_list, trim=trim)
     composite = composite_scores(summary)
+    intervals = composite_intervals(cell_list, composite)
+    composite = composite.merge(intervals.drop(columns="CS"), on=["scenario", "model"], how="left")
     notes = _notes(summary, composite, models, trim=trim, compare_paper=compare_paper, ci=ci)
+    notes += list(extra_notes or [])
     paper = paper_values(models) if compare_paper else None
     table = build_table(summary, composite, models, paper, notes)
     markdown = to_markdown(table, ci=ci)
+    better = improvement(rows, models, trim=trim)
+    aggregates = aggregate_scores(cell_list, composite, models)
+    statistics = statistics_markdown(better, aggregates, trim=trim)
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -108,11 +139,15 @@ def build_report(
         "csv": out_dir / "table.csv",
         "summary": out_dir / "summary.csv",
         "composite": out_dir / "composite_scores.csv",
+        "improvement": out_dir / "improvement.csv",
+        "aggregates": out_dir / "aggregate_scores.csv",
+        "statistics": out_dir / "statistics.md",
     }
     paths["markdown"].write_text(markdown, encoding="utf-8")
-    to_csv_frame(table).to_csv(paths["csv"], index=False)
-    summary.to_csv(paths["summary"], index=False)
-    composite.to_csv(paths["composite"], index=False)
+    paths["statistics"].write_text(statistics, encoding="utf-8")
+    for key, frame in [("csv", to_csv_frame(table)), ("summary", summary), ("composite", composite),
+                       ("improvement", better), ("aggregates", aggregates)]:
+        frame.to_csv(paths[key], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
     if latex:
         paths["latex"] = out_dir / "table.tex"
         paths["latex"].write_text(to_latex(table, ci=ci), encoding="utf-8")
@@ -128,4 +163,4 @@ def build_report(
             paths["training_curves"] = plot_training_curves(
                 curves, out_dir / "training_curves.png", models
             )
-    return Report(markdown, table, summary, composite, paths, notes)
+    return Report(markdown, table, summary, composite, better, aggregates, statistics, paths, notes)

@@ -1,14 +1,15 @@
-"""`sigmarl report`: the study's evaluation runs from MLflow -> tables, figures, a report run."""
+"""`sigmarl report`: evaluation rows (from MLflow, or from a results folder with --from) ->
+tables, figures, and a report run in MLflow (unless tracking.enabled=false)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import pandas as pd
 from omegaconf import DictConfig
 
 from sigmarl.evaluation import records
 from sigmarl.report.build import Report, build_report
+from sigmarl.report.folder import checkpoint_of, read_results
 
 
 def make_report(
@@ -36,22 +37,64 @@ def make_report(
                           latex=latex, curves=curves if curves is not None and len(curves) else None,
                           ci=ci, figures=figures)
     if figures:
-        from sigmarl.maps.plot import save_scenario_maps
-
-        report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png")
+        _add_maps(report, out_dir)
     if animation_steps > 0:
-        report.paths.update(_animations(client, experiment, cfg, out_dir, animation_steps))
-    _log_report(client, experiment, report, rows)
+        report.paths.update(_animations(_mlflow_checkpoint(client, experiment), cfg, out_dir, animation_steps))
+    _log_report(client, experiment, report, {
+        "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
+    })
     return report
 
 
-def _log_report(client, experiment: str, report: Report, rows: pd.DataFrame) -> None:
-    """A report run: the table files, figures and composite scores, with the runs it used."""
+def make_report_from_folder(
+    root: Path,
+    cfg: DictConfig,
+    out_dir: Path | None = None,
+    latex: bool = False,
+    trim: bool = False,
+    compare_paper: bool = False,
+    models: list[str] | None = None,
+    ci: bool = False,
+    figures: bool = True,
+    animation_steps: int = 0,
+) -> Report:
+    """The report of a results folder (`sigmarl.report.folder`): no MLflow reads, no training.
+
+    Logged as a report run in experiment `cfg.tracking.experiment` unless tracking is off.
+    Default output: reports/<folder name>.
+    """
+    root = Path(root)
+    results = read_results(root)
+    out_dir = out_dir or Path("reports") / root.resolve().name
+    curves = results.curves if figures and len(results.curves) else None
+    report = build_report(results.rows, models, out_dir=out_dir, trim=trim, compare_paper=compare_paper,
+                          latex=latex, curves=curves, ci=ci, figures=figures, extra_notes=results.notes)
+    if figures:
+        _add_maps(report, out_dir)
+    if animation_steps > 0:
+        from sigmarl.evaluation.study import checkpoint_name
+
+        path = checkpoint_of(results.runs, "M0", checkpoint_name(cfg.eval.checkpoint))
+        if path is None:
+            from sigmarl.errors import SigmarlError
+
+            raise SigmarlError(f"animations need M0's {checkpoint_name(cfg.eval.checkpoint)} in {root}; none found")
+        report.paths.update(_animations(path, cfg, out_dir, animation_steps))
+    if cfg.tracking.enabled:
+        _log_report(records.client_for(cfg), cfg.tracking.experiment, report, {"source": str(root.resolve())})
+    return report
+
+
+def _add_maps(report: Report, out_dir: Path) -> None:
+    from sigmarl.maps.plot import save_scenario_maps
+
+    report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png")
+
+
+def _log_report(client, experiment: str, report: Report, tags: dict[str, str]) -> None:
+    """A report run: the table files, figures and composite scores, with what it was built from."""
     exp_id = records.experiment_id(client, experiment, create=True)
-    run = client.create_run(exp_id, run_name="report", tags={
-        "kind": "report",
-        "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
-    })
+    run = client.create_run(exp_id, run_name="report", tags={"kind": "report", **tags})
     rid = run.info.run_id
     try:
         for _, r in report.composite.dropna(subset=["CS"]).iterrows():
@@ -64,24 +107,29 @@ def _log_report(client, experiment: str, report: Report, rows: pd.DataFrame) -> 
         raise
 
 
-def _animations(client, experiment: str, cfg: DictConfig, out_dir: Path, steps: int) -> dict[str, Path]:
-    """One GIF per scenario of M0's evaluated checkpoint (deterministic actions, eval seed)."""
-    from omegaconf import OmegaConf
-    from torchrl.envs.utils import ExplorationType, set_exploration_type
-
-    from sigmarl.env import make_env
-    from sigmarl.env.render import render_rollout
+def _mlflow_checkpoint(client, experiment: str) -> Path:
+    """M0's evaluated checkpoint (its first seed) as recorded in MLflow, if on this machine."""
     from sigmarl.errors import SigmarlError
-    from sigmarl.evaluation.rollout import scenario_map_config
-    from sigmarl.study import SCENARIOS
-    from sigmarl.training.loop import load_policy
 
     exp_id = records.experiment_id(client, experiment)
     runs = client.search_runs([exp_id], filter_string="tags.kind = 'evaluation' and tags.model = 'M0'",
                               order_by=["tags.seed ASC"], max_results=1)
     if not runs or not Path(runs[0].data.tags.get("checkpoint", "")).is_file():
         raise SigmarlError("animations need M0's evaluated checkpoint on this machine; none found")
-    path = Path(runs[0].data.tags["checkpoint"])
+    return Path(runs[0].data.tags["checkpoint"])
+
+
+def _animations(path: Path, cfg: DictConfig, out_dir: Path, steps: int) -> dict[str, Path]:
+    """One GIF per scenario of checkpoint `path` driving (deterministic actions, eval seed)."""
+    from omegaconf import OmegaConf
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from sigmarl.env import make_env
+    from sigmarl.env.render import render_rollout
+    from sigmarl.evaluation.rollout import scenario_map_config
+    from sigmarl.study import SCENARIOS
+    from sigmarl.training.loop import load_policy
+
     out = {}
     for scenario, (_, n_agents) in SCENARIOS.items():
         actor, state = load_policy(path, n_agents=n_agents)

@@ -24,10 +24,11 @@ MISSING = "–"
 
 @dataclass
 class ResultTable:
-    """Means (and CI half-widths, optional paper numbers) indexed by (scenario, metric)."""
+    """Estimates (and interval bounds, optional paper numbers) indexed by (scenario, metric)."""
 
     values: pd.DataFrame
-    ci: pd.DataFrame
+    ci_low: pd.DataFrame
+    ci_high: pd.DataFrame
     paper: pd.DataFrame | None = None
     notes: list[str] = field(default_factory=list)
 
@@ -47,10 +48,16 @@ def build_table(
     paper: pd.DataFrame | None = None,
     notes: list[str] | None = None,
 ) -> ResultTable:
-    """Arrange an `aggregate` summary and `composite_scores` into the paper's layout."""
+    """Arrange an `aggregate` summary and `composite_scores` into the paper's layout.
+
+    `composite` may carry ci_low/ci_high columns (`scores.composite_intervals`).
+    """
     scenarios = list(dict.fromkeys(summary["scenario"]))
     index = pd.MultiIndex.from_product([scenarios, ROW_METRICS], names=["scenario", "metric"])
-    cs = composite.assign(metric="CS", mean=composite["CS"], ci=math.nan)
+    cs = composite.assign(metric="CS", mean=composite["CS"])
+    for bound in ("ci_low", "ci_high"):
+        if bound not in cs.columns:
+            cs[bound] = math.nan
     long = pd.concat([summary, cs], ignore_index=True)
 
     def wide(column: str) -> pd.DataFrame:
@@ -63,7 +70,7 @@ def build_table(
 
     if paper is not None:
         paper = paper.reindex(index=index, columns=models).astype(float)
-    return ResultTable(wide("mean"), wide("ci"), paper, list(notes or []))
+    return ResultTable(wide("mean"), wide("ci_low"), wide("ci_high"), paper, list(notes or []))
 
 
 def best_mask(values: pd.DataFrame, digits: int = DIGITS) -> pd.DataFrame:
@@ -87,18 +94,18 @@ def _number(x: float, digits: int) -> str:
 
 
 def _cells(
-    table: ResultTable, *, ci: bool, digits: int, bold: tuple[str, str], pm: str
+    table: ResultTable, *, ci: bool, digits: int, bold: tuple[str, str]
 ) -> pd.DataFrame:
-    """Cell strings: value, optional ± half-width, bold when best, optional (paper)."""
+    """Cell strings: value, optional [low, high] interval, bold when best, optional (paper)."""
     mask = best_mask(table.values, digits)
     cells = pd.DataFrame("", index=table.values.index, columns=table.values.columns)
     for key in table.values.index:
         for model in table.models:
             v = table.values.at[key, model]
             text = _number(v, digits)
-            half = table.ci.at[key, model]
-            if ci and math.isfinite(half):
-                text += f"{pm}{_number(half, digits)}"
+            lo, hi = table.ci_low.at[key, model], table.ci_high.at[key, model]
+            if ci and math.isfinite(lo) and math.isfinite(hi):
+                text += f" [{_number(lo, digits)}, {_number(hi, digits)}]"
             if mask.at[key, model]:
                 text = f"{bold[0]}{text}{bold[1]}"
             if table.paper is not None:
@@ -115,7 +122,7 @@ def row_label(metric: str) -> str:
 
 def to_markdown(table: ResultTable, *, ci: bool = False, digits: int = DIGITS) -> str:
     """A GitHub-flavoured Markdown table, scenario named on its group's first row."""
-    cells = _cells(table, ci=ci, digits=digits, bold=("**", "**"), pm=" ± ")
+    cells = _cells(table, ci=ci, digits=digits, bold=("**", "**"))
     lines = [
         "| Scenario | Metric | " + " | ".join(table.models) + " |",
         "|---|---|" + "---:|" * len(table.models),
@@ -151,7 +158,7 @@ def to_latex(
 
     Needs only `\\usepackage{booktabs}`; numbers use a real minus sign.
     """
-    cells = _cells(table, ci=ci, digits=digits, bold=(r"\textbf{", "}"), pm=r" $\pm$ ")
+    cells = _cells(table, ci=ci, digits=digits, bold=(r"\textbf{", "}"))
     cells = cells.map(lambda s: s.replace("-", "$-$").replace(MISSING, "--"))
     n = len(table.models)
     out = [
@@ -200,3 +207,64 @@ def to_csv_frame(table: ResultTable) -> pd.DataFrame:
         .drop(columns="_row")
         .reset_index(drop=True)
     )
+
+
+def _interval(value: float, lo: float, hi: float, digits: int) -> str:
+    text = _number(value, digits)
+    if math.isfinite(lo) and math.isfinite(hi):
+        text += f" [{_number(lo, digits)}, {_number(hi, digits)}]"
+    return text
+
+
+def statistics_markdown(
+    improvement: pd.DataFrame, aggregates: pd.DataFrame, *, trim: bool = False, digits: int = DIGITS
+) -> str:
+    """Markdown of `scores.improvement` (scenarios x models) and `scores.aggregate_scores`."""
+    lines: list[str] = []
+    if len(improvement):
+        reference = improvement["reference"].iloc[0]
+        others = list(dict.fromkeys(improvement["model"]))
+        cells = improvement.set_index(["scenario", "model"])
+        lines += [
+            f"Probability that {reference} has a lower CR_total than each model "
+            "[95% bootstrap interval]" + (" (collision rates trimmed)" if trim else "") + ":",
+            "",
+            "| Scenario | " + " | ".join(f"{reference} vs {m}" for m in others) + " |",
+            "|---|" + "---:|" * len(others),
+        ]
+        for scenario in dict.fromkeys(improvement["scenario"]):
+            row = []
+            for m in others:
+                if (scenario, m) in cells.index:
+                    c = cells.loc[(scenario, m)]
+                    row.append(_interval(c["probability"], c["ci_low"], c["ci_high"], digits))
+                else:
+                    row.append(MISSING)
+            lines.append(f"| {scenario} | " + " | ".join(row) + " |")
+        lines += [
+            "",
+            "A simulation of a random seed of each model is compared; ties count half; "
+            "0.5 means no difference, 1 that the reference always had fewer collisions.",
+            "",
+        ]
+    if len(aggregates):
+        stats = list(dict.fromkeys(aggregates["statistic"]))
+        cells = aggregates.set_index(["model", "statistic"])
+        lines += [
+            "Composite score aggregated over scenarios [95% stratified bootstrap interval]:",
+            "",
+            "| Model | " + " | ".join(stats) + " | scenarios | runs |",
+            "|---|" + "---:|" * (len(stats) + 2),
+        ]
+        for model in dict.fromkeys(aggregates["model"]):
+            row = [_interval(cells.at[(model, s), "value"], cells.at[(model, s), "ci_low"],
+                             cells.at[(model, s), "ci_high"], digits) for s in stats]
+            first = cells.loc[(model, stats[0])]
+            lines.append(f"| {model} | " + " | ".join(row) + f" | {int(first['n_scenarios'])} | {int(first['n_runs'])} |")
+        lines += [
+            "",
+            "Per-seed composite scores with each scenario's normalisers fixed (their mean over "
+            "seeds is the table's CS); mean: over scenarios; IQM: interquartile mean of all "
+            "(scenario, seed) scores.",
+        ]
+    return "\n".join(lines) + "\n" if lines else ""

@@ -1,0 +1,146 @@
+"""A results folder on disk -> evaluation rows and training curves (no MLflow).
+
+Layout, as a sweep writes it (`runs_root=...`) and as results/paper-budget/ is committed:
+
+    <root>/<model label>/seed<k>/
+        config.yaml          the resolved training config
+        metrics.csv          per-iteration training metrics: `iteration` + metric columns
+        evaluation_rows.csv  per-simulation rows (sigmarl.study.ROW_KEYS + METRIC_COLUMNS)
+        best.pt, final.pt    checkpoints (read only for animations)
+
+A run folder without evaluation rows (training unfinished) is skipped and named in the
+notes; without metrics.csv it just has no training curve.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from sigmarl.errors import SigmarlError
+from sigmarl.study import MODELS
+
+ROWS_FILE = "evaluation_rows.csv"
+METRICS_FILE = "metrics.csv"
+CONFIG_FILE = "config.yaml"
+REWARD = "episode_reward_mean"
+_SEED_DIR = re.compile(r"seed(-?\d+)")
+_LABEL = re.compile(r"M\d+|custom-[0-9a-f]+")
+
+
+@dataclass(frozen=True)
+class RunFolder:
+    label: str  # the model folder's name
+    seed: int
+    path: Path
+
+
+@dataclass
+class FolderResults:
+    rows: pd.DataFrame
+    curves: pd.DataFrame  # model, seed, iteration, reward
+    runs: list[RunFolder]
+    notes: list[str] = field(default_factory=list)
+
+
+def run_folders(root: Path) -> list[RunFolder]:
+    """Every <label>/seed<k>/ folder under `root`, models M0..M5 first, then by name and seed."""
+    root = Path(root)
+    if not root.is_dir():
+        raise SigmarlError(f"results folder not found: {root}")
+    found = []
+    for model_dir in root.iterdir():
+        if not model_dir.is_dir():
+            continue
+        for seed_dir in model_dir.iterdir():
+            m = _SEED_DIR.fullmatch(seed_dir.name)
+            if m and seed_dir.is_dir():
+                found.append(RunFolder(model_dir.name, int(m.group(1)), seed_dir))
+    order = {name: i for i, name in enumerate(MODELS)}
+    found.sort(key=lambda r: (order.get(r.label, len(order)), r.label, r.seed))
+    if not found:
+        raise SigmarlError(f"{root} holds no run folders (expected <model>/seed<k>/ inside it)")
+    return found
+
+
+def _read_csv(path: Path) -> pd.DataFrame:
+    try:
+        return pd.read_csv(path, float_precision="round_trip")
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+        raise SigmarlError(f"{path} is not a readable CSV: {str(e).splitlines()[0]}") from e
+
+
+def _rows_of(run: RunFolder) -> pd.DataFrame:
+    """The run's evaluation rows, its model and seed checked against the folder's names."""
+    path = run.path / ROWS_FILE
+    rows = _read_csv(path)
+    if "seed" not in rows.columns:
+        rows.insert(0, "seed", run.seed)
+    if "model" not in rows.columns:
+        rows.insert(0, "model", run.label)
+    models = set(rows["model"].astype(str))
+    # folders named by label must hold that label's rows (folders of older sweeps were named
+    # by observation preset, so other names are taken as they are)
+    if _LABEL.fullmatch(run.label) and models != {run.label}:
+        raise SigmarlError(f"{path} holds rows of model {', '.join(sorted(models))}, not {run.label}")
+    seeds = set(pd.to_numeric(rows["seed"], errors="coerce"))
+    if seeds != {run.seed}:
+        raise SigmarlError(f"{path} holds rows of seed {', '.join(map(str, sorted(seeds)))}, not {run.seed}")
+    return rows
+
+
+def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | None]:
+    """(model, seed, iteration, reward) from metrics.csv, or a note why there is none."""
+    path = run.path / METRICS_FILE
+    if not path.is_file():
+        return None, None
+    metrics = _read_csv(path)
+    missing = [c for c in ("iteration", REWARD) if c not in metrics.columns]
+    if missing:
+        return None, f"{path} lacks the column(s) {', '.join(missing)}: no training curve"
+    # a resumed run may have logged an iteration twice: the last record counts
+    metrics = metrics.drop_duplicates("iteration", keep="last").sort_values("iteration", kind="stable")
+    curve = pd.DataFrame({"model": model, "seed": run.seed, "iteration": metrics["iteration"].to_numpy(),
+                          "reward": metrics[REWARD].to_numpy()})
+    return curve, None
+
+
+def read_results(root: Path) -> FolderResults:
+    """All evaluation rows and training curves of a results folder."""
+    runs = run_folders(root)
+    frames, curves, notes = [], [], []
+    seen: dict[tuple[str, int], Path] = {}
+    for run in runs:
+        if not (run.path / ROWS_FILE).is_file():
+            notes.append(f"{run.path} has no {ROWS_FILE} (not evaluated yet): left out")
+            continue
+        rows = _rows_of(run)
+        model = str(rows["model"].iloc[0])
+        key = (model, run.seed)
+        if key in seen:
+            raise SigmarlError(f"{model} seed {run.seed} is in both {seen[key]} and {run.path}")
+        seen[key] = run.path
+        frames.append(rows)
+        curve, note = _curve_of(run, model)
+        if curve is not None:
+            curves.append(curve)
+        if note:
+            notes.append(note)
+    if not frames:
+        raise SigmarlError(f"no {ROWS_FILE} under {root}: nothing evaluated to report on")
+    rows = pd.concat(frames, ignore_index=True)
+    curve_frame = (pd.concat(curves, ignore_index=True) if curves
+                   else pd.DataFrame(columns=["model", "seed", "iteration", "reward"]))
+    return FolderResults(rows, curve_frame, runs, notes)
+
+
+def checkpoint_of(runs: list[RunFolder], model: str, name: str) -> Path | None:
+    """`name` (best.pt / final.pt) of `model`'s lowest seed in the folder, if present."""
+    for run in runs:
+        if (run.path / name).is_file() and (run.path / ROWS_FILE).is_file():
+            if str(_rows_of(run)["model"].iloc[0]) == model:
+                return run.path / name
+    return None
