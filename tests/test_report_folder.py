@@ -1,0 +1,118 @@
+"""`sigmarl report --from <folder>` on tests/data/results (a real smoke study: M0 and M4,
+seeds 0 and 1, trained at ppo=smoke, evaluated 3 simulations x 40 steps per scenario;
+regenerate with tests/data/make_results_fixture.py)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from mlflow import MlflowClient
+
+from sigmarl.cli import main
+from sigmarl.report.folder import read_results
+from sigmarl.study import METRIC_COLUMNS, SCENARIOS
+
+FIXTURE = Path(__file__).parent / "data" / "results"
+TABLE_FILES = ["table.md", "table.csv", "table.tex", "summary.csv", "composite_scores.csv",
+               "improvement.csv", "aggregate_scores.csv", "statistics.md"]
+
+
+def report(tmp_path: Path, out: str, *args: str, source: Path = FIXTURE) -> int:
+    return main(["report", "--from", str(source), "--out", str(tmp_path / out), *args,
+                 "tracking.enabled=false"])
+
+
+def test_rebuild_is_byte_identical(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # tracking off: nothing may appear in the working folder
+    assert report(tmp_path, "a", "--latex", "--compare-paper", "--ci", "--no-figures") == 0
+    assert report(tmp_path, "b", "--latex", "--compare-paper", "--ci", "--no-figures") == 0
+    for name in TABLE_FILES:
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+    assert not (tmp_path / "mlflow.db").exists() and not (tmp_path / "mlruns").exists()
+
+
+def test_table_holds_seed_level_means_of_the_folder(tmp_path):
+    assert report(tmp_path, "out", "--no-figures") == 0
+    table = pd.read_csv(tmp_path / "out" / "table.csv")
+    ours = table[table["source"] == "ours"].set_index(["scenario", "metric"])
+    assert list(ours.columns[-2:]) == ["M0", "M4"]
+    # independently: read every evaluation_rows.csv, mean per seed, then over the seeds
+    rows = pd.concat([pd.read_csv(p) for p in FIXTURE.glob("*/seed*/evaluation_rows.csv")])
+    assert sorted(rows["seed"].unique()) == [0, 1] and len(rows) == 2 * 2 * 4 * 3
+    per_seed = rows.groupby(["scenario", "model", "seed"])[METRIC_COLUMNS].mean()
+    means = per_seed.groupby(["scenario", "model"]).mean()
+    for (scenario, model), m in means.iterrows():
+        for metric in METRIC_COLUMNS:
+            scale = 100 if metric.startswith("CR") else 1
+            assert ours.loc[(scenario, metric), model] == pytest.approx(scale * m[metric], abs=1e-8)
+    assert set(ours.index.get_level_values("scenario")) == set(SCENARIOS)
+    markdown = (tmp_path / "out" / "table.md").read_text()
+    assert "Mean over 2 seeds of each seed's mean" in markdown
+    stats = (tmp_path / "out" / "statistics.md").read_text()
+    assert "| Scenario | M0 vs M4 |" in stats and "| M4 |" in stats
+
+
+@pytest.mark.slow
+def test_figures_with_and_without_training_metrics(tmp_path):
+    source = tmp_path / "results"
+    shutil.copytree(FIXTURE, source)
+    (source / "M4" / "seed1" / "metrics.csv").unlink()  # one run without training metrics
+    results = read_results(source)
+    assert sorted(set(zip(results.curves["model"], results.curves["seed"], strict=True))) == [("M0", 0), ("M0", 1), ("M4", 0)]
+    assert results.curves["iteration"].tolist()[:3] == [1, 2, 3]
+    assert report(tmp_path, "out", source=source) == 0
+    for name in ("training_curves.png", "distributions.png", "scenario_maps.png"):
+        assert (tmp_path / "out" / name).stat().st_size > 1000
+    for path in source.glob("*/seed*/metrics.csv"):
+        path.unlink()
+    assert report(tmp_path, "bare", source=source) == 0
+    assert not (tmp_path / "bare" / "training_curves.png").exists()
+    assert (tmp_path / "bare" / "table.md").exists()
+
+
+def test_unevaluated_runs_are_named_and_left_out(tmp_path, capsys):
+    source = tmp_path / "results"
+    shutil.copytree(FIXTURE, source)
+    (source / "M4" / "seed1" / "evaluation_rows.csv").unlink()
+    assert report(tmp_path, "out", "--no-figures", source=source) == 0
+    out = capsys.readouterr().out
+    assert "M4/seed1 has no evaluation_rows.csv" in out
+    summary = pd.read_csv(tmp_path / "out" / "summary.csv")
+    assert set(summary.loc[summary["model"] == "M4", "n_seeds"]) == {1}
+
+
+@pytest.mark.parametrize(
+    ("setup", "message"),
+    [
+        (lambda root: None, "results folder not found"),
+        (lambda root: root.mkdir(), "holds no run folders"),
+        (lambda root: shutil.copytree(FIXTURE / "M0", root / "M1"), "holds rows of model M0, not M1"),
+        (lambda root: (root / "M0" / "seed0").mkdir(parents=True)
+         or (root / "M0" / "seed0" / "evaluation_rows.csv").write_text("model,seed\nM0,0\n"),
+         "lack the column"),
+    ],
+)
+def test_bad_folders_end_with_one_line(tmp_path, capsys, setup, message):
+    source = tmp_path / "results"
+    setup(source)
+    assert report(tmp_path, "out", "--no-figures", source=source) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+
+
+def test_report_run_logged_to_mlflow(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    rc = main(["report", "--from", str(FIXTURE), "--no-figures", f"tracking.tracking_uri={uri}",
+               "tracking.experiment=from-folder"])
+    assert rc == 0
+    assert (tmp_path / "reports" / "results" / "table.md").exists()  # default: reports/<folder name>
+    client = MlflowClient(tracking_uri=uri)
+    exp = client.get_experiment_by_name("from-folder")
+    (run,) = client.search_runs([exp.experiment_id], filter_string="tags.kind = 'report'")
+    assert run.info.status == "FINISHED" and run.data.tags["source"] == str(FIXTURE.resolve())
+    assert {a.path for a in client.list_artifacts(run.info.run_id)} >= {"table.md", "improvement.csv"}
+    assert "CS/CPM/M0" in run.data.metrics
