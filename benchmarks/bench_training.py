@@ -6,10 +6,14 @@ identical MLP shapes (same batch, same clipped-PPO/entropy/smooth-L1 maths, Adam
 the compute any implementation must pay. Target: full iteration <= 1.15 x floor.
 
 To keep the run short, optimisation (ours and the floor, interleaved epoch by epoch) runs
-`--epochs` epochs and is scaled to the configured 60; collection and GAE run in full. Usage:
+`--epochs` epochs and is scaled to the configured 60; collection and GAE run in full.
+
+Mixed precision: the PPO update (epochs of 8 minibatches of 512 over one collected batch) with
+`ppo.precision=fp32` and `bf16`, epoch by epoch in turn on one thread, and their ratio
+(`--precision-epochs`, 0 to skip; `--only-precision` for this alone). Usage:
 
     python benchmarks/bench_training.py [--epochs 6] [--repeats 1] [--threads 1 2] [--compare-rollout]
-        [overrides...]
+        [--precision-epochs 10] [--only-precision] [overrides...]
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from sigmarl.compose import compose_config
 from sigmarl.training.loop import build, learning_rate
 from sigmarl.training.mappo import collect, update
 from sigmarl.training.networks import ACTION, OBS
+from sigmarl.training.ppo_loss import LeanPPOLoss, cpu_has_native_bf16
 
 
 def _mlp(n_in: int, hidden: list[int], n_out: int) -> nn.Sequential:
@@ -174,6 +179,52 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
     return {k: tuple(statistics.median(x[i] for x in v) for i in (0, 1)) for k, v in rows.items()}
 
 
+def measure_precision(cfg, epochs: int) -> dict[str, float]:
+    """CPU seconds of `epochs` PPO epochs in fp32 and in bf16, run alternately on one thread."""
+    torch.set_num_threads(1)
+    parts = build(cfg, torch.device("cpu"))
+    data = collect(iter(parts.collector))
+    with torch.no_grad():
+        parts.gae(data)
+    one = cfg.ppo.copy()
+    one.epochs = 1
+    losses = {}
+    for precision in ("fp32", "bf16"):
+        ppo = cfg.ppo.copy()
+        ppo.precision = precision
+        losses[precision] = LeanPPOLoss(parts.actor, parts.critic, ppo)
+        update(data, losses[precision], parts.optimiser, one)  # warm-up
+    cpu = dict.fromkeys(losses, 0.0)
+    for _ in range(epochs):
+        for precision, loss in losses.items():
+            with _Clock() as c:
+                update(data, loss, parts.optimiser, one)
+            cpu[precision] += c.cpu
+    parts.close()
+    return cpu
+
+
+def _cpu_name() -> str:
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "unknown CPU"
+
+
+def report_precision(cfg, epochs: int) -> None:
+    ppo = cfg.ppo
+    cpu = measure_precision(cfg, epochs)
+    print(f"PPO update, fp32 vs bf16 autocast (one thread, {epochs} epochs each, interleaved, "
+          f"{ppo.frames_per_iteration // ppo.minibatch_size} minibatches of {ppo.minibatch_size} per epoch)")
+    print(f"  CPU: {_cpu_name()}; native bf16 (avx512_bf16/amx_bf16): {cpu_has_native_bf16()}")
+    for precision, seconds in cpu.items():
+        print(f"  {precision:<6}{seconds / epochs:7.3f} s per epoch")
+    print(f"  fp32 / bf16   x{cpu['fp32'] / cpu['bf16']:.3f}   (>1: bf16 is faster)\n")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--epochs", type=int, default=6, help="epochs actually run (scaled to ppo.epochs)")
@@ -181,9 +232,15 @@ def main() -> None:
     p.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     p.add_argument("--compare-rollout", action="store_true",
                    help="also time collection with env.rollout instead of the Collector")
+    p.add_argument("--precision-epochs", type=int, default=10,
+                   help="epochs per precision in the fp32/bf16 comparison (0: skip it)")
+    p.add_argument("--only-precision", action="store_true", help="run only the fp32/bf16 comparison")
     p.add_argument("overrides", nargs="*", default=[], help="Hydra overrides (default: paper)")
     args = p.parse_args()
     cfg = compose_config(["tracking.enabled=false", *args.overrides])
+    if args.only_precision:
+        report_precision(cfg, max(args.precision_epochs, 1))
+        return
     ppo = cfg.ppo
     print(
         f"settings: {ppo.num_envs} envs x {ppo.frames_per_iteration // ppo.num_envs} steps, "
@@ -219,6 +276,9 @@ def main() -> None:
         print(f"  projected {ppo.iterations} iterations: {projected[threads] / 60:.1f} min\n")
     print("projected wall time for", ppo.iterations, "iterations:",
           ", ".join(f"{t} thread(s) {s / 60:.1f} min" for t, s in projected.items()))
+    if args.precision_epochs > 0:
+        print()
+        report_precision(cfg, args.precision_epochs)
 
 
 if __name__ == "__main__":

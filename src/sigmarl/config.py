@@ -97,6 +97,10 @@ class PPOConfig:
     entropy_coef: float = 1e-4
     normalize_advantage: bool = False
     loss: str = "lean"  # lean: the PPO loss on plain tensors | torchrl: torchrl's ClipPPOLoss (same maths)
+    # fp32 | bf16: the networks' forward passes in the PPO update under bfloat16 autocast
+    # (log-probabilities, ratios, advantages, losses stay fp32; lean loss only) | auto: bf16
+    # where the CPU has native bf16 (avx512_bf16 / amx_bf16) or the GPU supports it
+    precision: str = "fp32"
     checkpoint_every: int = 5
     stop_after: int = 0  # >0: stop (as if interrupted) once this many iterations are done
 

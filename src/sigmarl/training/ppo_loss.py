@@ -11,11 +11,18 @@
 
 Both take `prepare(data)` once per iteration, then `loss(batch, idx)` per minibatch, which
 returns the total loss to minimise and the detached terms named in `TERMS`.
+
+Mixed precision (`ppo.precision=bf16`, lean loss only): the actor's and critic's MLPs run under
+`torch.autocast(..., dtype=torch.bfloat16)`; their outputs are cast back to fp32 before the
+scale mapping, so log-probabilities, ratios, advantages and every reduction stay fp32.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+from functools import cache, partial
+from pathlib import Path
 
 import torch
 import torch.nn.functional as F
@@ -25,6 +32,7 @@ from torch import nn
 from torchrl.modules import ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss
 
+from sigmarl.errors import SigmarlError
 from sigmarl.training.networks import (
     ACTION,
     LOG_PROB,
@@ -44,6 +52,30 @@ TERMS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "clip_fract
 # what the update needs from a rollout
 TRAIN_KEYS = [OBS, ACTION, LOG_PROB, ADVANTAGE, VALUE_TARGET]
 LOSSES = ("lean", "torchrl")
+PRECISIONS = ("fp32", "bf16", "auto")
+
+
+@cache
+def cpu_has_native_bf16() -> bool:
+    """True when the CPU computes bf16 natively (AVX512-BF16 or AMX-BF16 in /proc/cpuinfo);
+    elsewhere bf16 is emulated and slower than fp32."""
+    try:
+        flags = Path("/proc/cpuinfo").read_text().split()
+    except OSError:
+        return False
+    return "avx512_bf16" in flags or "amx_bf16" in flags
+
+
+def resolve_precision(precision: str, device: torch.device | str) -> str:
+    """fp32 or bf16 for `ppo.precision` on `device` (auto: bf16 only where it is native)."""
+    if precision not in PRECISIONS:
+        raise SigmarlError(f"ppo.precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
+    if precision != "auto":
+        return precision
+    kind = torch.device(device).type
+    if kind == "cpu":
+        return "bf16" if cpu_has_native_bf16() else "fp32"
+    return "bf16" if kind == "cuda" and torch.cuda.is_bf16_supported() else "fp32"
 
 
 class TorchrlPPOLoss:
@@ -85,6 +117,23 @@ class LeanPPOLoss:
         self.clip = (math.log1p(-ppo.clip_epsilon), math.log1p(ppo.clip_epsilon))
         self.entropy_coef = ppo.entropy_coef
         self.normalize_advantage = ppo.normalize_advantage
+        device = next(critic.parameters()).device
+        self.precision = resolve_precision(ppo.get("precision", "fp32"), device)
+        self.autocast = (partial(torch.autocast, device.type, dtype=torch.bfloat16)
+                         if self.precision == "bf16" else contextlib.nullcontext)
+
+    def networks(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(loc, scale, value) in fp32; the MLPs themselves under autocast when bf16."""
+        with self.autocast():
+            out, value = self.head.net(obs), self.value(obs)
+        loc, scale = self.head.scale_map(out.float())
+        return loc, scale, value.float()
+
+    def log_weight(self, batch: dict[str, torch.Tensor], idx: torch.Tensor, loc: torch.Tensor,
+                   scale: torch.Tensor) -> torch.Tensor:
+        """log(new / old probability) of the stored actions, [m, agents, 1], fp32."""
+        log_prob = gaussian_log_prob((batch["u"][idx] - loc) / scale, scale.log()) - batch["log_jac"][idx]
+        return (log_prob - batch["old_log_prob"][idx]).unsqueeze(-1)
 
     def prepare(self, data: TensorDictBase) -> dict[str, torch.Tensor]:
         """Flat [frames, agents, ...] tensors, with the pre-tanh actions and their log-Jacobian."""
@@ -104,11 +153,9 @@ class LeanPPOLoss:
         }
 
     def __call__(self, batch: dict[str, torch.Tensor], idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        obs = batch["obs"][idx]
-        loc, scale = self.head.loc_scale(obs)
+        loc, scale, value = self.networks(batch["obs"][idx])
         log_scale = scale.log()
-        log_prob = gaussian_log_prob((batch["u"][idx] - loc) / scale, log_scale) - batch["log_jac"][idx]
-        log_weight = (log_prob - batch["old_log_prob"][idx]).unsqueeze(-1)
+        log_weight = self.log_weight(batch, idx, loc, scale)
         adv = batch["advantage"][idx]
         if self.normalize_advantage:
             adv = (adv - adv.mean()) / adv.std().clamp_min(1e-6)
@@ -120,7 +167,7 @@ class LeanPPOLoss:
         u = loc + scale * noise
         entropy = -(gaussian_log_prob(noise, log_scale) - tanh_log_jacobian(u, self.head.log_half)).mean()
         loss_entropy = -self.entropy_coef * entropy
-        loss_critic = F.smooth_l1_loss(self.value(obs), batch["target"][idx])
+        loss_critic = F.smooth_l1_loss(value, batch["target"][idx])
         total = loss_objective + loss_critic + loss_entropy
         with torch.no_grad():
             terms = torch.stack([
@@ -131,4 +178,9 @@ class LeanPPOLoss:
 
 
 def make_loss(actor: ProbabilisticActor, critic: nn.Module, ppo: DictConfig) -> LeanPPOLoss | TorchrlPPOLoss:
-    return (TorchrlPPOLoss if ppo.loss == "torchrl" else LeanPPOLoss)(actor, critic, ppo)
+    if ppo.loss == "torchrl":
+        if resolve_precision(ppo.get("precision", "fp32"), next(critic.parameters()).device) != "fp32":
+            raise SigmarlError("ppo.precision=bf16 needs ppo.loss=lean (ClipPPOLoss would compute "
+                               "log-probabilities in bf16)")
+        return TorchrlPPOLoss(actor, critic, ppo)
+    return LeanPPOLoss(actor, critic, ppo)
