@@ -86,6 +86,21 @@ def test_probability_of_improvement_by_hand():
     assert bs.probability_of_improvement(g([1], [0, 0, 0]), g([0])) == pytest.approx(0.25)
 
 
+def test_probability_of_improvement_equals_the_double_sum():
+    # an independent, literal implementation: every pair of simulations, seed weights
+    rng = np.random.default_rng(5)
+    x = [rng.integers(0, 4, n).astype(float) for n in (5, 3, 7)]  # small integers: many ties
+    y = [rng.integers(0, 4, n).astype(float) for n in (4, 6)]
+    total = 0.0
+    for xs in x:
+        for ys in y:
+            pairs = [(a < b) + 0.5 * (a == b) for a in xs for b in ys]
+            total += sum(pairs) / len(pairs)
+    expected = total / (len(x) * len(y))
+    got = bs.probability_of_improvement([v[:, None] for v in x], [v[:, None] for v in y])
+    assert got == pytest.approx(expected, abs=1e-12)
+
+
 def test_probability_of_improvement_interval_collapses():
     rng = bs.rng_for("poi")
     ties = bs.bootstrap_improvement(g([0, 0], [0]), g([0, 0, 0]), 300, rng)

@@ -32,7 +32,6 @@ import numpy as np
 BOOT_SEED = 2024
 N_BOOT = 4000
 LEVEL = 0.95
-_CHUNK = 250  # replicates per block in the pairwise comparisons (bounds memory)
 
 
 def rng_for(*names: object) -> np.random.Generator:
@@ -110,42 +109,54 @@ def probability_of_improvement(x: Sequence[np.ndarray], y: Sequence[np.ndarray])
     Each seed weighs equally, and within a seed each simulation: the Mann-Whitney statistic
     with seed-level weights. Lower is better (collision rates): 1 means x always did better.
     """
-    (px, lx), (py, ly) = padded(x), padded(y)
-    vx, wx = _weights(px[None, ..., 0], np.arange(px.shape[1]) < lx[:, None])
-    vy, wy = _weights(py[None, ..., 0], np.arange(py.shape[1]) < ly[:, None])
-    return float(_pairwise(vx, wx, vy, wy)[0])
+    codes_x, codes_y, n_values = _codes(x, y)
+    (px, lx), (py, ly) = padded(codes_x), padded(codes_y)
+    hx = _histogram(px[None, ..., 0], np.arange(px.shape[1]) < lx[:, None], n_values)
+    hy = _histogram(py[None, ..., 0], np.arange(py.shape[1]) < ly[:, None], n_values)
+    return float(_compare(hx, hy)[0])
 
 
 def bootstrap_improvement(
     x: Sequence[np.ndarray], y: Sequence[np.ndarray], n_boot: int, rng: np.random.Generator
 ) -> np.ndarray:
     """[B] probabilities of improvement over independent two-level resamples of x and y."""
-    dx, mx = resample(x, n_boot, rng)
-    dy, my = resample(y, n_boot, rng)
-    vx, wx = _weights(dx[..., 0], mx)
-    vy, wy = _weights(dy[..., 0], my)
-    out = np.empty(n_boot)
-    for b in range(0, n_boot, _CHUNK):
-        s = slice(b, b + _CHUNK)
-        out[s] = _pairwise(vx[s], wx[s], vy[s], wy[s])
-    return out
+    codes_x, codes_y, n_values = _codes(x, y)
+    dx, mx = resample(codes_x, n_boot, rng)
+    dy, my = resample(codes_y, n_boot, rng)
+    return _compare(_histogram(dx[..., 0], mx, n_values), _histogram(dy[..., 0], my, n_values))
 
 
-def _weights(values: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Flatten [B, S, n] draws to [B, S*n] with weights 1 / (seeds * finite sims of the seed)."""
-    valid = valid & np.isfinite(values)
+def _codes(x: Sequence[np.ndarray], y: Sequence[np.ndarray]) -> tuple[list, list, int]:
+    """Both samples' values replaced by their rank among the distinct values of the two
+    (NaN kept): every comparison of draws is then a comparison of these ranks."""
+    values = np.concatenate([g[:, 0] for g in (*x, *y)])
+    distinct = np.unique(values[np.isfinite(values)])
+
+    def code(g: np.ndarray) -> np.ndarray:
+        out = np.searchsorted(distinct, g).astype(float)
+        out[~np.isfinite(g)] = math.nan
+        return out
+
+    return [code(g) for g in x], [code(g) for g in y], max(len(distinct), 1)
+
+
+def _histogram(codes: np.ndarray, valid: np.ndarray, n_values: int) -> np.ndarray:
+    """[B, n_values]: per replicate, the weight on each distinct value; a draw weighs
+    1 / (seeds with a finite draw x finite draws of its seed), so each replicate sums to 1."""
+    valid = valid & np.isfinite(codes)
     per_seed = valid.sum(-1, keepdims=True)
     seeds = (per_seed > 0).sum(-2, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where(valid, 1.0 / (per_seed * seeds), 0.0)
-    b = values.shape[0]
-    return np.nan_to_num(values).reshape(b, -1), w.reshape(b, -1)
+    b = codes.shape[0]
+    flat = (np.arange(b)[:, None, None] * n_values + np.where(valid, codes, 0).astype(np.int64)).ravel()
+    return np.bincount(flat, weights=w.ravel(), minlength=b * n_values).reshape(b, n_values)
 
 
-def _pairwise(vx: np.ndarray, wx: np.ndarray, vy: np.ndarray, wy: np.ndarray) -> np.ndarray:
-    x, y = vx[:, :, None], vy[:, None, :]
-    score = (x < y) + 0.5 * (x == y)
-    return np.einsum("bi,bij,bj->b", wx, score, wy)
+def _compare(hx: np.ndarray, hy: np.ndarray) -> np.ndarray:
+    """Sum over values u of hx[u] * (hy above u + hy at u / 2)."""
+    above = np.cumsum(hy[:, ::-1], axis=1)[:, ::-1] - hy  # weight of y strictly greater than u
+    return (hx * (above + 0.5 * hy)).sum(1)
 
 
 def iqm(values: np.ndarray, axis: int = -1) -> np.ndarray:

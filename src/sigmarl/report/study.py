@@ -23,7 +23,8 @@ def make_report(
     figures: bool = True,
     animation_steps: int = 0,
 ) -> Report:
-    """Build the report of experiment `cfg.tracking.experiment` and log it as a report run.
+    """Build the report of experiment `cfg.tracking.experiment`; log it as a report run unless
+    tracking is off.
 
     With figures, also the four scenario maps; with animation_steps > 0, one GIF per scenario
     of M0 (its first seed's evaluated checkpoint) driving under the evaluation protocol.
@@ -40,9 +41,10 @@ def make_report(
         _add_maps(report, out_dir)
     if animation_steps > 0:
         report.paths.update(_animations(_mlflow_checkpoint(client, experiment), cfg, out_dir, animation_steps))
-    _log_report(client, experiment, report, {
-        "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
-    })
+    if cfg.tracking.enabled:
+        _log_report(client, experiment, report, {
+            "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
+        })
     return report
 
 
