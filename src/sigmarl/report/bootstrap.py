@@ -161,8 +161,10 @@ def _compare(hx: np.ndarray, hy: np.ndarray) -> np.ndarray:
 
 def iqm(values: np.ndarray, axis: int = -1) -> np.ndarray:
     """Interquartile mean: the mean after cutting floor(n/4) values from each end (as
-    scipy.stats.trim_mean(values, 0.25) and rliable do)."""
+    scipy.stats.trim_mean(values, 0.25) and rliable do); NaN where a value is NaN (a bootstrap
+    replicate that drew no finite value, which the percentile interval then skips)."""
+    has_nan = np.isnan(values).any(axis=axis)
     values = np.sort(values, axis=axis)
     n = values.shape[axis]
     cut = n // 4
-    return np.take(values, np.arange(cut, n - cut), axis=axis).mean(axis=axis)
+    return np.where(has_nan, math.nan, np.take(values, np.arange(cut, n - cut), axis=axis).mean(axis=axis))

@@ -59,7 +59,7 @@ def composite_intervals(
         lo = hi = np.nan
         if c.scenario in weights and np.isfinite(value):
             reps = _seed_scores(c.replicates, weights[c.scenario])  # [B, S]
-            lo, hi = bs.percentile_interval(np.nanmean(reps, axis=-1), level)
+            lo, hi = bs.percentile_interval(bs.mean_over_seeds(reps[..., None])[..., 0], level)
         records.append({"scenario": c.scenario, "model": c.model, "CS": value, "ci_low": float(lo),
                         "ci_high": float(hi)})
     return pd.DataFrame(records, columns=CS_COLUMNS)
