@@ -68,3 +68,15 @@ def test_table_agrees_with_mlflow_rows(study):
         for metric in METRIC_COLUMNS:
             scale = 100 if metric.startswith("CR") else 1  # the table shows percent
             assert ours.loc[(scenario, metric), model] == pytest.approx(scale * m[metric], abs=1e-9)
+
+
+def test_report_from_the_sweep_folder_equals_the_mlflow_report(study, monkeypatch):
+    # the sweep's run folders alone (no MLflow reads) rebuild the same table
+    root = study[0]
+    monkeypatch.chdir(root)
+    rc = main(["report", "--from", "runs/sigmarl-quick", "--out", "reports/from-folder", "--no-figures",
+               "tracking.enabled=false"])
+    assert rc == 0
+    for name in ("table.csv", "table.md", "summary.csv", "improvement.csv"):
+        assert (root / "reports" / "from-folder" / name).read_bytes() == (
+            root / "reports" / "sigmarl-quick" / name).read_bytes(), name
