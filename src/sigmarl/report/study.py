@@ -9,6 +9,7 @@ from omegaconf import DictConfig
 
 from sigmarl.evaluation import records
 from sigmarl.report.build import Report, build_report
+from sigmarl.study import SCENARIOS
 
 
 def make_report(
@@ -24,8 +25,9 @@ def make_report(
 ) -> Report:
     """Build the report of experiment `cfg.tracking.experiment` and log it as a report run.
 
-    With figures, also the four scenario maps; with animation_steps > 0, one GIF per scenario
-    of M0 (its first seed's evaluated checkpoint) driving under the evaluation protocol.
+    With figures, also the maps of the table's scenarios; with animation_steps > 0, one GIF
+    per scenario of M0 (its first seed's evaluated checkpoint) driving under the evaluation
+    protocol.
     """
     experiment = cfg.tracking.experiment
     client = records.client_for(cfg)
@@ -35,12 +37,13 @@ def make_report(
     report = build_report(rows, models, out_dir=out_dir, trim=trim, compare_paper=compare_paper,
                           latex=latex, curves=curves if curves is not None and len(curves) else None,
                           ci=ci, figures=figures)
+    known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
     if figures:
         from sigmarl.maps.plot import save_scenario_maps
 
-        report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png")
+        report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png", known)
     if animation_steps > 0:
-        report.paths.update(_animations(client, experiment, cfg, out_dir, animation_steps))
+        report.paths.update(_animations(client, experiment, cfg, out_dir, animation_steps, known))
     _log_report(client, experiment, report, rows)
     return report
 
@@ -64,7 +67,8 @@ def _log_report(client, experiment: str, report: Report, rows: pd.DataFrame) -> 
         raise
 
 
-def _animations(client, experiment: str, cfg: DictConfig, out_dir: Path, steps: int) -> dict[str, Path]:
+def _animations(client, experiment: str, cfg: DictConfig, out_dir: Path, steps: int,
+                scenarios: list[str]) -> dict[str, Path]:
     """One GIF per scenario of M0's evaluated checkpoint (deterministic actions, eval seed)."""
     from omegaconf import OmegaConf
     from torchrl.envs.utils import ExplorationType, set_exploration_type
@@ -73,7 +77,6 @@ def _animations(client, experiment: str, cfg: DictConfig, out_dir: Path, steps: 
     from sigmarl.env.render import render_rollout
     from sigmarl.errors import SigmarlError
     from sigmarl.evaluation.rollout import scenario_map_config
-    from sigmarl.study import SCENARIOS
     from sigmarl.training.loop import load_policy
 
     exp_id = records.experiment_id(client, experiment)
@@ -83,7 +86,8 @@ def _animations(client, experiment: str, cfg: DictConfig, out_dir: Path, steps: 
         raise SigmarlError("animations need M0's evaluated checkpoint on this machine; none found")
     path = Path(runs[0].data.tags["checkpoint"])
     out = {}
-    for scenario, (_, n_agents) in SCENARIOS.items():
+    for scenario in scenarios:
+        n_agents = SCENARIOS[scenario][1]
         actor, state = load_policy(path, n_agents=n_agents)
         train_cfg = OmegaConf.create(state["config"])
         env = make_env(train_cfg, num_envs=1, n_agents=n_agents, mode="test", max_steps=steps,
