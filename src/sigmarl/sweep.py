@@ -188,7 +188,8 @@ def _prepare_store(overrides: Sequence[str]) -> None:
         if cfg.run_dir in owner:
             raise SigmarlError(
                 f"jobs {' '.join(owner[cfg.run_dir])} and {' '.join(job)} would share the run folder "
-                f"{cfg.run_dir}; sweep only models and seeds, or give each value its own runs_root"
+                f"{cfg.run_dir}; sweep only models and seeds, and run one sweep per other setting, "
+                "each with its own tracking.experiment=..."
             )
         owner[cfg.run_dir] = job
     cfg = compose_config(fixed)
