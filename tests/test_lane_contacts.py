@@ -101,7 +101,8 @@ def test_a_corner_grazing_a_sharp_vertex_is_flagged(env_factory):
     assert float(sc.geo.d_side[1, 0, 0]) == pytest.approx(0.0005, abs=1e-6)
 
 
-MAPS = ["cpm", "cpm_intersection", "intersection", "on_ramp", "roundabout"]
+MAPS = ["cpm", "cpm_intersection", "paper_intersection", "paper_on_ramp", "paper_roundabout", "intersection",
+        "on_ramp", "roundabout"]
 
 
 @pytest.mark.parametrize("name", MAPS)

@@ -17,7 +17,9 @@ def assert_png(path: Path) -> None:
     assert data[:8] == PNG_MAGIC and len(data) > 10_000  # a drawn map, not an empty canvas
 
 
-@pytest.mark.parametrize("name", ["cpm", "intersection", "on_ramp", "roundabout"])
+@pytest.mark.parametrize(
+    "name", ["cpm", "paper_intersection", "paper_on_ramp", "paper_roundabout", "intersection", "on_ramp", "roundabout"]
+)
 def test_show_writes_png(tmp_path, capsys, name):
     out = tmp_path / f"{name}.png"
     assert main(["maps", "show", name, "--out", str(out)]) == 0
@@ -48,11 +50,20 @@ def test_show_broken_osm_fails_with_file_name(tmp_path, capsys):
 def test_list_prints_every_map(capsys):
     assert main(["maps", "list"]) == 0
     rows = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines()[1:]}
-    assert set(rows) == {"cpm", "cpm_intersection", "intersection", "on_ramp", "roundabout"}
+    assert set(rows) == {"cpm", "cpm_intersection", "intersection", "on_ramp", "roundabout",
+                         "paper_intersection", "paper_on_ramp", "paper_roundabout"}
     # lanelets and routes columns
     assert rows["cpm"][1:3] == ["104", "7"]
     assert rows["cpm_intersection"][2] == "24"
+    assert [rows[f"paper_{k}"][1:3] for k in ("intersection", "on_ramp", "roundabout")] == [
+        ["11", "6"], ["7", "4"], ["9", "5"]]
     assert rows["intersection"][1:3] == ["20", "12"]
     assert rows["on_ramp"][1:3] == ["5", "3"]
     assert rows["roundabout"][1:3] == ["24", "16"]
+
+
+def test_missing_packaged_map_exits_2(capsys):
+    rc = main(["maps", "show", "paper_roundabout", "map.path=package:maps/nope.osm"])
+    assert rc == 2
+    assert "map.path=package:maps/nope.osm: no such file in the sigmarl package" in capsys.readouterr().err
 

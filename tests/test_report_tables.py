@@ -210,3 +210,25 @@ def test_figures(tmp_path):
     report = build_report(rows[rows.scenario.isin(SCENARIOS[:2])], out_dir=tmp_path, curves=curves)
     for key in ("distributions", "training_curves"):
         assert report.paths[key].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_paper_numbers_only_beside_the_papers_maps(tmp_path):
+    """A procedural map is not Table I's scenario: no paper numbers there, in any format."""
+    rows = hand_rows()
+    proc = rows[rows.scenario == "Roundabout"].assign(scenario="Proc-Roundabout")
+    report = build_report(pd.concat([rows, proc]), out_dir=tmp_path, compare_paper=True, latex=True,
+                          figures=False)
+    groups, current = {}, None
+    for row in body(report.markdown):
+        current = row[0] or current  # the group's name is on its first row only
+        groups.setdefault(current, []).append(row)
+    assert list(groups) == [*SCENARIOS, "Proc-Roundabout"]
+    assert all("(" in cell for row in groups["Roundabout"] for cell in row[2:])
+    assert not any("(" in cell for row in groups["Proc-Roundabout"] for cell in row[2:])
+    assert "Proc-Roundabout: not in the paper (procedural maps), no paper numbers." in report.notes
+    csv = pd.read_csv(report.paths["csv"])
+    assert set(csv[csv.source == "paper"].scenario) == set(SCENARIOS)
+    tex = report.paths["latex"].read_text()
+    proc_block = tex.split("Proc-Roundabout}}")[1].split("\\bottomrule")[0]
+    cells = [line.split(" & ")[1:] for line in proc_block.splitlines() if " & " in line]
+    assert len(cells) == 6 and not any("(" in c for row in cells for c in row)

@@ -132,7 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.set_defaults(func=cmd_train)
     ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios")
     ev.add_argument("target", help="checkpoint file, training run folder, or MLflow training run id")
-    ev.add_argument("--scenario", action="append", help="CPM, Intersection, On-Ramp or Roundabout (repeatable; default all)")
+    ev.add_argument("--scenario", action="append", help="CPM, Intersection, On-Ramp, Roundabout (the paper's; the default is all four), "
+                    "Proc-Intersection, Proc-On-Ramp or Proc-Roundabout (procedural maps); repeatable")
     ev.add_argument("--out", help="also write the per-simulation rows to this CSV")
     ev.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. eval.n_sims=8 eval.steps=600")
     ev.set_defaults(func=cmd_evaluate)

@@ -7,8 +7,10 @@ tags, run folders, evaluation rows and the report all call `model_label`.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
+
+from sigmarl.errors import SigmarlError
 
 # Model name -> observation preset (conf/obs/<preset>.yaml).
 MODELS: dict[str, str] = {
@@ -30,13 +32,20 @@ OBS_FLAGS: dict[str, str] = {
     "distance_to_center_line": "DC",
 }
 
-# Scenario name -> (map config name, number of agents), study.md section 3.
+# Scenario name -> (map config name, number of agents), study.md section 3. The first four
+# are the paper's Table I: the CPM map and the paper's own hand-drawn maps (spec §1.2).
+# The "Proc-" ones are this project's procedural builders, for generalisation beyond the
+# paper (`study=extended`); they have no numbers in the paper.
 SCENARIOS: dict[str, tuple[str, int]] = {
     "CPM": ("cpm", 15),
-    "Intersection": ("intersection", 6),
-    "On-Ramp": ("on_ramp", 8),
-    "Roundabout": ("roundabout", 8),
+    "Intersection": ("paper_intersection", 6),
+    "On-Ramp": ("paper_on_ramp", 8),
+    "Roundabout": ("paper_roundabout", 8),
+    "Proc-Intersection": ("intersection", 6),
+    "Proc-On-Ramp": ("on_ramp", 8),
+    "Proc-Roundabout": ("roundabout", 8),
 }
+PAPER_SCENARIOS = ("CPM", "Intersection", "On-Ramp", "Roundabout")  # Table I, the default
 
 # Columns of one evaluation row: one (model, seed, scenario, simulation); `obs` lists the
 # strategies that were on (e.g. "V,DA,DB,DC" for M1).
@@ -59,3 +68,22 @@ def model_label(obs: Mapping[str, Any]) -> str:
     if len(off) == 1:
         return PRESET_TO_MODEL[f"no_{off[0]}"]
     return "custom-" + hashlib.sha1(obs_strategies(obs).encode()).hexdigest()[:6]
+
+
+def check_eval(eval_cfg: Mapping[str, Any], scenarios: Sequence[str] | None = None) -> list[str]:
+    """The scenarios to evaluate on, after checking the evaluation settings: one clear
+    SigmarlError for a bad value, so a sweep can refuse before it trains anything."""
+    for key in ("n_sims", "steps"):
+        if int(eval_cfg[key]) <= 0:
+            raise SigmarlError(f"eval.{key} must be positive, got {eval_cfg[key]}")
+    if str(eval_cfg["checkpoint"]) not in ("best", "final"):
+        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {eval_cfg['checkpoint']!r}")
+    names = [str(s) for s in (scenarios if scenarios is not None else eval_cfg["scenarios"])]
+    if not names:
+        raise SigmarlError(f"eval.scenarios is empty; choose from {', '.join(SCENARIOS)}")
+    unknown = [s for s in names if s not in SCENARIOS]
+    if unknown:
+        raise SigmarlError(f"unknown scenario(s) {', '.join(map(repr, unknown))}; choose from {', '.join(SCENARIOS)}")
+    if len(set(names)) != len(names):
+        raise SigmarlError(f"eval.scenarios names a scenario twice: {', '.join(names)}")
+    return names

@@ -10,16 +10,21 @@ already holds a finished one under the same protocol.
 
 from __future__ import annotations
 
+import itertools
+import math
 import os
 import sys
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import Override
+from hydra.errors import HydraException
 from omegaconf import DictConfig, open_dict
 
 from sigmarl.errors import SigmarlError
-from sigmarl.study import MODELS
+from sigmarl.study import MODELS, check_eval
 
 FAILED_FILE = "failed.txt"
 DONE_FILE = "evaluated.txt"
@@ -62,32 +67,72 @@ def run_job(cfg: DictConfig) -> str:
         return "failed"
 
 
+def _parse(items: Sequence[str]) -> list[Override]:
+    """Overrides as Hydra's own parser reads them (lists, quoted strings, range(), choice())."""
+    try:
+        return OverridesParser.create().parse_overrides(list(items))
+    except HydraException as e:
+        raise SigmarlError(f"bad override: {e}") from e
+
+
+def _values(o: Override) -> list[str]:
+    """What one override takes, as Hydra override strings: its single value, or each value
+    of a sweep (`a,b`, `range(3)`, `choice(...)`)."""
+    if not o.is_sweep_override():
+        return [o.get_value_element_as_str()]
+    if not o.is_discrete_sweep():
+        raise SigmarlError(f"{o.input_line}: a sweep needs discrete values (a,b or range() or choice()), "
+                           "not an interval")
+    return list(o.sweep_string_iterator())
+
+
+def _items(o: Override) -> list[str]:
+    """A shorthand's values: the elements of `[a,b]`, the values of a sweep, or one value."""
+    if not o.is_sweep_override() and isinstance(o.value(), list):
+        return [str(v) for v in o.value()]
+    return _values(o)
+
+
+def _is_hydra(o: Override) -> bool:
+    return o.key_or_group.split("/")[0].split(".")[0] == "hydra"
+
+
+def _sweeps(overrides: Sequence[str]) -> list[tuple[str, list[str]]]:
+    """(key as written, values) of every sweep over the job's config (not Hydra's settings)."""
+    return [(o.get_key_element(), _values(o)) for o in _parse(overrides)
+            if o.is_sweep_override() and not _is_hydra(o)]
+
+
 def sweep_overrides(user: Sequence[str], cores: int | None = None) -> list[str]:
     """The multirun's overrides: the six presets and seed 0 unless the user chose, plus
-    launcher settings from the core count. `seeds=[0,1,2]` and `models=[M0,M4]` are
-    shorthands for `seed=0,1,2` and the models' presets."""
+    launcher settings from the core count. `seeds=[0,1,2]` (or `seeds=range(3)`) and
+    `models=[M0,M4]` are shorthands for `seed=0,1,2` and the models' presets."""
     out: list[str] = []
     keys = set()
     seeds = models = None
-    for item in user:
-        key, _, value = item.partition("=")
-        if key == "seeds":
-            seeds = [s.strip() for s in value.strip("[]").split(",") if s.strip()]
+    for o in _parse(user):
+        if o.key_or_group == "seeds":
+            seeds = _items(o)
             continue
-        if key == "models":
-            names = [m.strip() for m in value.strip("[]").split(",") if m.strip()]
+        if o.key_or_group == "models":
+            names = _items(o)
             unknown = [m for m in names if m not in MODELS]
             if unknown:
                 raise SigmarlError(f"unknown model(s) {unknown}; choose from {', '.join(MODELS)}")
             models = [MODELS[m] for m in names]
             continue
-        keys.add(key.lstrip("+~"))
-        out.append(item)
+        keys.add(o.key_or_group)
+        out.append(o.input_line)
+    for short, key, given in (("models", "obs", models), ("seeds", "seed", seeds)):
+        if given is not None and key in keys:
+            raise SigmarlError(f"give either {short}=[...] or {key}=..., not both")
+        if given is not None and not given:
+            raise SigmarlError(f"{short}=[] selects no jobs")
     if "obs" not in keys:
         out.append("obs=" + ",".join(models or MODELS.values()))
     if "seed" not in keys:
         out.append("seed=" + ",".join(seeds or ["0"]))
-    n_jobs = _count(out, "obs") * _count(out, "seed")
+    n_jobs = math.prod(len(values) for _, values in _sweeps(out))
     cores = cores or os.cpu_count() or 1
     jobs = min(n_jobs, cores)
     if "hydra/launcher" not in keys:
@@ -99,12 +144,11 @@ def sweep_overrides(user: Sequence[str], cores: int | None = None) -> list[str]:
     return out
 
 
-def _count(overrides: list[str], key: str) -> int:
-    for item in overrides:
-        k, _, v = item.partition("=")
-        if k == key:
-            return len(v.split(","))
-    return 1
+def _jobs(overrides: Sequence[str]) -> list[list[str]]:
+    """Each job's overrides on top of `_fixed`: one value of every sweep, all combinations."""
+    sweeps = _sweeps(overrides)
+    return [[f"{key}={v}" for (key, _), v in zip(sweeps, combo, strict=True)]
+            for combo in itertools.product(*(values for _, values in sweeps))]
 
 
 def run_sweep(user_overrides: Sequence[str]) -> int:
@@ -128,27 +172,34 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
 
 
 def _prepare_store(overrides: Sequence[str]) -> None:
-    """Validate the sweep's configs, then create the MLflow store and experiment once, here:
+    """Validate every job's config, then create the MLflow store and experiment once, here:
     parallel jobs creating a new SQLite store at the same moment would race on its schema
     migration."""
     from sigmarl.compose import compose_config
     from sigmarl.evaluation import records
 
     fixed = _fixed(overrides)
-    # Check every swept value here, so a typo ends with one message before any job starts.
-    for item in overrides:
-        key, _, values = item.partition("=")
-        if "," in values and not key.startswith("hydra"):
-            for value in values.split(","):
-                compose_config([*fixed, f"{key}={value}"])
+    # Compose every job here, so a typo or a bad evaluation setting ends with one message
+    # before anything trains, and two jobs never share a run folder.
+    owner: dict[str, list[str]] = {}
+    for job in _jobs(overrides):
+        cfg = compose_config([*fixed, *job])
+        check_eval(cfg.eval)
+        if cfg.run_dir in owner:
+            raise SigmarlError(
+                f"jobs {' '.join(owner[cfg.run_dir])} and {' '.join(job)} would share the run folder "
+                f"{cfg.run_dir}; sweep only models and seeds, and run one sweep per other setting, "
+                "each with its own tracking.experiment=..."
+            )
+        owner[cfg.run_dir] = job
     cfg = compose_config(fixed)
     if cfg.tracking.enabled:
         records.experiment_id(records.client_for(cfg), cfg.tracking.experiment, create=True)
 
 
 def _fixed(overrides: Sequence[str]) -> list[str]:
-    """The overrides that are the same for every job (no sweep lists, no hydra settings)."""
-    return [o for o in overrides if "," not in o and not o.startswith("hydra")]
+    """The overrides that are the same for every job (no sweeps, no hydra settings)."""
+    return [o.input_line for o in _parse(overrides) if not o.is_sweep_override() and not _is_hydra(o)]
 
 
 def summarise(overrides: Sequence[str]) -> int:
@@ -156,24 +207,23 @@ def summarise(overrides: Sequence[str]) -> int:
     from sigmarl.compose import compose_config
 
     fixed = _fixed(overrides)
-    presets = next((o.split("=", 1)[1] for o in overrides if o.startswith("obs=")), "full").split(",")
-    seeds = next((o.split("=", 1)[1] for o in overrides if o.startswith("seed=")), "0").split(",")
     bad = 0
     print("\nsweep summary:")
-    for preset in presets:
-        for seed in seeds:
-            cfg = compose_config([*fixed, f"obs={preset}", f"seed={seed}"])
-            run_dir = Path(cfg.run_dir)
-            if (run_dir / FAILED_FILE).exists():
-                state = "FAILED: " + (run_dir / FAILED_FILE).read_text().strip().splitlines()[-1][:200]
-                bad += 1
-            elif (run_dir / DONE_FILE).exists():
-                state = "trained and evaluated"
-            else:
-                state = "unfinished (run the sweep again to resume)"
-                bad += 1
-            print(f"  {cfg.model:<6} {preset:<28} seed {seed:<3} {state}   [{run_dir}]")
+    for job in _jobs(overrides):
+        cfg = compose_config([*fixed, *job])
+        run_dir = Path(cfg.run_dir)
+        if (run_dir / FAILED_FILE).exists():
+            state = "FAILED: " + (run_dir / FAILED_FILE).read_text().strip().splitlines()[-1][:200]
+            bad += 1
+        elif (run_dir / DONE_FILE).exists():
+            state = "trained and evaluated"
+        else:
+            state = "unfinished (run the sweep again to resume)"
+            bad += 1
+        # Swept values other than the model and seed, if any, name the job too.
+        extra = " ".join(j for j in job if not j.startswith(("obs=", "seed=")))
+        print(f"  {cfg.model:<6} {cfg.obs.preset:<28} seed {cfg.seed:<3} {extra + '  ' if extra else ''}"
+              f"{state}   [{run_dir}]")
     if not bad:
         print(f"next: sigmarl report {' '.join(o for o in fixed if o.startswith(('study', 'tracking')))}".rstrip())
     return 1 if bad else 0
-

@@ -17,7 +17,7 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from sigmarl.errors import SigmarlError
-from sigmarl.study import METRIC_COLUMNS
+from sigmarl.study import METRIC_COLUMNS, SCENARIOS
 
 ROWS_ARTIFACT = "evaluation_rows.csv"
 # A report downloads one small CSV per run: MLflow's progress bars would only be noise.
@@ -52,7 +52,11 @@ def experiment_id(client, name: str, create: bool = False) -> str | None:
 
 def eval_key(eval_cfg: DictConfig) -> str:
     """A short hash of the evaluation protocol: runs with equal keys are interchangeable."""
-    blob = json.dumps(OmegaConf.to_container(eval_cfg, resolve=True), sort_keys=True)
+    protocol = OmegaConf.to_container(eval_cfg, resolve=True)
+    # A scenario's name does not say which map it ran on (Table I's names moved from the
+    # procedural maps to the paper's own): the key holds each scenario's map and agents.
+    protocol["maps"] = {s: list(SCENARIOS[s]) for s in protocol["scenarios"] if s in SCENARIOS}
+    blob = json.dumps(protocol, sort_keys=True)
     return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
 

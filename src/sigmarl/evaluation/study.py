@@ -11,7 +11,7 @@ from omegaconf import DictConfig, OmegaConf
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation import records
 from sigmarl.evaluation.rollout import evaluate_policy
-from sigmarl.study import SCENARIOS, model_label, obs_strategies
+from sigmarl.study import SCENARIOS, check_eval, model_label, obs_strategies
 
 
 def checkpoint_name(which: str) -> str:
@@ -55,10 +55,7 @@ def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] |
     """Per-simulation rows of a trained policy on each scenario, and the checkpoint's state."""
     from sigmarl.training.loop import load_policy
 
-    scenarios = list(scenarios or eval_cfg.scenarios)
-    for s in scenarios:
-        if s not in SCENARIOS:
-            raise SigmarlError(f"unknown scenario {s!r}; choose from {', '.join(SCENARIOS)}")
+    scenarios = check_eval(eval_cfg, scenarios or None)
     frames = []
     state = None
     for scenario in scenarios:

@@ -21,8 +21,10 @@ def load_map(cfg) -> RoadMap:
         return builders.build(cfg)
     if kind == "osm":
         from sigmarl.maps.osm import load_osm
+        from sigmarl.maps.paper import package_map_path
 
         if not cfg.path:
             raise MapError("map.kind=osm needs map.path=<file.osm>")
-        return load_osm(cfg.path, lane_width=cfg.lane_width, routes=list(cfg.routes) or None, name=cfg.name)
+        path = package_map_path(cfg.path)  # `package:maps/x.osm`: a map shipped with sigmarl
+        return load_osm(path, lane_width=cfg.lane_width, routes=list(cfg.routes) or None, name=cfg.name)
     raise MapError(f"unknown map kind {kind!r}; choose cpm, intersection, on_ramp, roundabout or osm")

@@ -417,3 +417,34 @@ def save_lanelet2_osm(roadmap: RoadMap, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tree.write(path, encoding="utf-8", xml_declaration=True)
     return path
+
+
+def save_centerline_osm(centers: dict[int, np.ndarray], path: str | Path) -> Path:
+    """Write center lines as SigmaRL-style OSM: one way tagged `lanes=<id>` per lanelet.
+
+    Points equal to 1e-9 m become one node, so lanelets that meet share their end node
+    (that is how the loader finds successors). lat/lon carry x/y at 1e-5 degree per metre;
+    `load_osm` shifts the lowest node to 1.2 lane widths, as the dialect prescribes.
+    """
+    path = Path(path)
+    root = ET.Element("osm", version="0.6", generator="sigmarl")
+    nodes: list[ET.Element] = []
+    node_ids: dict[tuple[float, float], int] = {}
+    ways: list[ET.Element] = []
+    for lid, points in centers.items():
+        way = ET.Element("way", id=str(lid))
+        for p in np.asarray(points, dtype=np.float64):
+            key = (round(float(p[0]), 9), round(float(p[1]), 9))
+            if key not in node_ids:
+                node_ids[key] = len(node_ids) + 1
+                nodes.append(ET.Element("node", id=str(node_ids[key]), lat=repr(float(p[0]) / _DEG_TO_M),
+                                        lon=repr(float(p[1]) / _DEG_TO_M), version="1", visible="true"))
+            ET.SubElement(way, "nd", ref=str(node_ids[key]))
+        ET.SubElement(way, "tag", k="lanes", v=str(int(lid)))
+        ways.append(way)
+    root.extend([*nodes, *ways])
+    tree = ET.ElementTree(root)
+    ET.indent(tree)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tree.write(path, encoding="utf-8", xml_declaration=True)
+    return path

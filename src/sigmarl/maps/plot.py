@@ -16,8 +16,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from sigmarl.maps.model import RoadMap
+from sigmarl.study import PAPER_SCENARIOS
+from sigmarl.study import SCENARIOS as STUDY_SCENARIOS
 
-SCENARIOS = ("cpm", "intersection", "on_ramp", "roundabout")  # the paper's Fig. 4 panels
 _ROAD = "#e6e6e6"
 _EDGE = "#555555"
 
@@ -87,17 +88,21 @@ def save_map_figure(roadmap: RoadMap, path: str | Path, show_ids: bool = False) 
     return _save(fig, path)
 
 
-def save_scenario_maps(path: str | Path, maps: Sequence[RoadMap] | None = None) -> Path:
-    """The paper's Fig. 4: CPM whole map with its loops, intersection, on-ramp, roundabout."""
-    if maps is None:
-        from sigmarl.compose import compose_config
-        from sigmarl.maps import load_map
+def save_scenario_maps(path: str | Path, scenarios: Sequence[str] = PAPER_SCENARIOS) -> Path:
+    """The study's scenario maps, two or three to a row; by default the paper's Fig. 4: the
+    whole CPM map with its loops and the paper's intersection, on-ramp and roundabout."""
+    from sigmarl.compose import map_config
+    from sigmarl.maps import load_map
 
-        maps = [load_map(compose_config([f"map={name}"]).map) for name in SCENARIOS]
-    fig = Figure(figsize=(10, 8.5), layout="constrained")
-    axes = fig.subplots(2, 2)
-    for ax, m in zip(axes.flat, maps, strict=False):
+    cols = 2 if len(scenarios) <= 4 else 3
+    rows = -(-len(scenarios) // cols)
+    fig = Figure(figsize=(5 * cols, 4.25 * rows), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False)
+    for ax, scenario in zip(axes.flat, scenarios, strict=False):
+        m = load_map(map_config(STUDY_SCENARIOS[scenario][0]))
         plot_map(m, ax)
-    for ax in list(axes.flat)[len(maps):]:
+        ax.set_title(f"{scenario} ({m.name}): {len(m.lanelets)} lanelets, {len(m.routes)} routes, "
+                     f"{STUDY_SCENARIOS[scenario][1]} agents", fontsize=9)
+    for ax in list(axes.flat)[len(scenarios):]:
         ax.set_axis_off()
     return _save(fig, path)

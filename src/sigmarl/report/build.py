@@ -48,6 +48,7 @@ def _notes(
     trim: bool,
     compare_paper: bool,
     ci: bool,
+    paper_scenarios: set[str] = frozenset(),
 ) -> list[str]:
     """The lines under the table that say what the numbers are."""
     n = summary["n"][summary["metric"] == "AS"]
@@ -71,6 +72,9 @@ def _notes(
                 notes.append(f"{scenario}: {note}.")
     if compare_paper:
         notes.append("In parentheses: the paper's Table I (CD converted to real cm).")
+        others = [s for s in dict.fromkeys(summary["scenario"]) if s not in paper_scenarios]
+        if others:
+            notes.append(f"{', '.join(others)}: not in the paper (procedural maps), no paper numbers.")
         if not trim:
             notes.append(
                 "The paper dropped the best and worst simulation from its collision rates; "
@@ -123,9 +127,11 @@ def build_report(
     composite = composite_scores(summary)
     intervals = composite_intervals(cell_list, composite)
     composite = composite.merge(intervals.drop(columns="CS"), on=["scenario", "model"], how="left")
-    notes = _notes(summary, composite, models, trim=trim, compare_paper=compare_paper, ci=ci)
-    notes += list(extra_notes or [])
     paper = paper_values(models) if compare_paper else None
+    measured = set(paper.index.get_level_values("scenario")) if paper is not None else set()
+    notes = _notes(summary, composite, models, trim=trim, compare_paper=compare_paper, ci=ci,
+                   paper_scenarios=measured)
+    notes += list(extra_notes or [])
     table = build_table(summary, composite, models, paper, notes)
     markdown = to_markdown(table, ci=ci)
     better = improvement(rows, models, trim=trim)

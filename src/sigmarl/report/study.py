@@ -10,6 +10,7 @@ from omegaconf import DictConfig
 from sigmarl.evaluation import records
 from sigmarl.report.build import Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_results
+from sigmarl.study import SCENARIOS
 
 
 def make_report(
@@ -26,8 +27,9 @@ def make_report(
     """Build the report of experiment `cfg.tracking.experiment`; log it as a report run unless
     tracking is off.
 
-    With figures, also the four scenario maps; with animation_steps > 0, one GIF per scenario
-    of M0 (its first seed's evaluated checkpoint) driving under the evaluation protocol.
+    With figures, also the maps of the table's scenarios; with animation_steps > 0, one GIF
+    per scenario of M0 (its first seed's evaluated checkpoint) driving under the evaluation
+    protocol.
     """
     experiment = cfg.tracking.experiment
     client = records.client_for(cfg)
@@ -37,10 +39,12 @@ def make_report(
     report = build_report(rows, models, out_dir=out_dir, trim=trim, compare_paper=compare_paper,
                           latex=latex, curves=curves if curves is not None and len(curves) else None,
                           ci=ci, figures=figures)
+    known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
     if figures:
-        _add_maps(report, out_dir)
+        _add_maps(report, out_dir, known)
     if animation_steps > 0:
-        report.paths.update(_animations(_mlflow_checkpoint(client, experiment), cfg, out_dir, animation_steps))
+        report.paths.update(_animations(_mlflow_checkpoint(client, experiment), cfg, out_dir,
+                                        animation_steps, known))
     if cfg.tracking.enabled:
         _log_report(client, experiment, report, {
             "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
@@ -71,8 +75,9 @@ def make_report_from_folder(
     curves = results.curves if figures and len(results.curves) else None
     report = build_report(results.rows, models, out_dir=out_dir, trim=trim, compare_paper=compare_paper,
                           latex=latex, curves=curves, ci=ci, figures=figures, extra_notes=results.notes)
+    known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
     if figures:
-        _add_maps(report, out_dir)
+        _add_maps(report, out_dir, known)
     if animation_steps > 0:
         from sigmarl.evaluation.study import checkpoint_name
 
@@ -81,16 +86,16 @@ def make_report_from_folder(
             from sigmarl.errors import SigmarlError
 
             raise SigmarlError(f"animations need M0's {checkpoint_name(cfg.eval.checkpoint)} in {root}; none found")
-        report.paths.update(_animations(path, cfg, out_dir, animation_steps))
+        report.paths.update(_animations(path, cfg, out_dir, animation_steps, known))
     if cfg.tracking.enabled:
         _log_report(records.client_for(cfg), cfg.tracking.experiment, report, {"source": str(root.resolve())})
     return report
 
 
-def _add_maps(report: Report, out_dir: Path) -> None:
+def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
     from sigmarl.maps.plot import save_scenario_maps
 
-    report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png")
+    report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png", scenarios)
 
 
 def _log_report(client, experiment: str, report: Report, tags: dict[str, str]) -> None:
@@ -121,7 +126,7 @@ def _mlflow_checkpoint(client, experiment: str) -> Path:
     return Path(runs[0].data.tags["checkpoint"])
 
 
-def _animations(path: Path, cfg: DictConfig, out_dir: Path, steps: int) -> dict[str, Path]:
+def _animations(path: Path, cfg: DictConfig, out_dir: Path, steps: int, scenarios: list[str]) -> dict[str, Path]:
     """One GIF per scenario of checkpoint `path` driving (deterministic actions, eval seed)."""
     from omegaconf import OmegaConf
     from torchrl.envs.utils import ExplorationType, set_exploration_type
@@ -129,11 +134,11 @@ def _animations(path: Path, cfg: DictConfig, out_dir: Path, steps: int) -> dict[
     from sigmarl.env import make_env
     from sigmarl.env.render import render_rollout
     from sigmarl.evaluation.rollout import scenario_map_config
-    from sigmarl.study import SCENARIOS
     from sigmarl.training.loop import load_policy
 
     out = {}
-    for scenario, (_, n_agents) in SCENARIOS.items():
+    for scenario in scenarios:
+        n_agents = SCENARIOS[scenario][1]
         actor, state = load_policy(path, n_agents=n_agents)
         train_cfg = OmegaConf.create(state["config"])
         env = make_env(train_cfg, num_envs=1, n_agents=n_agents, mode="test", max_steps=steps,

@@ -69,7 +69,11 @@ def build_table(
         return w
 
     if paper is not None:
-        paper = paper.reindex(index=index, columns=models).astype(float)
+        # Only scenarios the paper measured: a procedural map has no paper numbers, even
+        # where its name resembles one of Table I's.
+        measured = set(paper.index.get_level_values("scenario"))
+        rows = index[index.get_level_values("scenario").isin(measured)]
+        paper = paper.reindex(index=rows, columns=models).astype(float)
     return ResultTable(wide("mean"), wide("ci_low"), wide("ci_high"), paper, list(notes or []))
 
 
@@ -108,7 +112,7 @@ def _cells(
                 text += f" [{_number(lo, digits)}, {_number(hi, digits)}]"
             if mask.at[key, model]:
                 text = f"{bold[0]}{text}{bold[1]}"
-            if table.paper is not None:
+            if table.paper is not None and key in table.paper.index:
                 text += f" ({_number(table.paper.at[key, model], digits)})"
             cells.at[key, model] = text
     return cells
