@@ -13,7 +13,7 @@ from mlflow import MlflowClient
 
 from sigmarl.cli import main
 from sigmarl.report.folder import read_results
-from sigmarl.study import METRIC_COLUMNS, SCENARIOS
+from sigmarl.study import METRIC_COLUMNS, PAPER_SCENARIOS
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 TABLE_FILES = ["table.md", "table.csv", "table.tex", "summary.csv", "composite_scores.csv",
@@ -48,7 +48,7 @@ def test_table_holds_seed_level_means_of_the_folder(tmp_path):
         for metric in METRIC_COLUMNS:
             scale = 100 if metric.startswith("CR") else 1
             assert ours.loc[(scenario, metric), model] == pytest.approx(scale * m[metric], abs=1e-8)
-    assert set(ours.index.get_level_values("scenario")) == set(SCENARIOS)
+    assert set(ours.index.get_level_values("scenario")) == set(PAPER_SCENARIOS)
     markdown = (tmp_path / "out" / "table.md").read_text()
     assert "Mean over 2 seeds of each seed's mean" in markdown
     stats = (tmp_path / "out" / "statistics.md").read_text()
