@@ -64,23 +64,23 @@ def test_resumed_run_ends_with_the_uninterrupted_weights(runs) -> None:
     assert runs.stopped["iteration"] == 1
     final = ckpt.load(runs.root / "resumed" / ckpt.FINAL_FILE)
     assert final["iteration"] == 3
-    assert _equal(_weights(runs.root / "full" / ckpt.FINAL_FILE),
-                  _weights(runs.root / "resumed" / ckpt.FINAL_FILE))
+    assert _equal(_weights(runs.root / "full" / ckpt.RESUME_FILE),
+                  _weights(runs.root / "resumed" / ckpt.RESUME_FILE))
 
 
 def test_same_seed_same_losses_and_weights_other_seed_differs(runs) -> None:
     for key in LOSSES:
         assert [h[key] for h in runs.full.history] == [h[key] for h in runs.again.history]
         assert [h[key] for h in runs.full.history] != [h[key] for h in runs.other.history]
-    full = _weights(runs.root / "full" / ckpt.FINAL_FILE)
-    assert _equal(full, _weights(runs.root / "again" / ckpt.FINAL_FILE))
-    assert not _equal(full, _weights(runs.root / "other" / ckpt.FINAL_FILE))
+    full = _weights(runs.root / "full" / ckpt.RESUME_FILE)
+    assert _equal(full, _weights(runs.root / "again" / ckpt.RESUME_FILE))
+    assert not _equal(full, _weights(runs.root / "other" / ckpt.RESUME_FILE))
 
 
 def test_training_moves_the_weights_and_losses_are_finite(runs) -> None:
     after_one = {**{f"policy.{k}": v for k, v in runs.stopped["policy"].items()},
                  **{f"critic.{k}": v for k, v in runs.stopped["critic"].items()}}
-    assert not _equal(_weights(runs.root / "full" / ckpt.FINAL_FILE), after_one)
+    assert not _equal(_weights(runs.root / "full" / ckpt.RESUME_FILE), after_one)
     assert ckpt.load(runs.root / "resumed" / ckpt.RESUME_FILE)["iteration"] == 3
     for h in runs.full.history:
         assert all(math.isfinite(h[k]) for k in LOSSES)

@@ -3,11 +3,23 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from sigmarl.errors import SigmarlError
+from sigmarl.errors import SigmarlError, Terminated
+
+
+def _terminate(signum, frame) -> None:
+    raise Terminated()
+
+
+def handle_sigterm() -> None:
+    """Turn SIGTERM into `Terminated` (a KeyboardInterrupt) in this process's main thread."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate)
 
 
 def _map_names() -> list[str]:
@@ -66,22 +78,21 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     from omegaconf import open_dict
 
     from sigmarl.compose import compose_config
-    from sigmarl.evaluation.study import evaluate_and_log, resolve_checkpoint
+    from sigmarl.evaluation.study import evaluate_and_log, resolve_checkpoint, rows_file_for
 
     cfg = compose_config(args.overrides)
     if args.scenario:
         with open_dict(cfg):
             cfg.eval.scenarios = list(args.scenario)
     path = resolve_checkpoint(args.target, cfg)
-    rows, run_id = evaluate_and_log(path, cfg, train_run_id=None)
+    rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
+    rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
     means = rows.groupby("scenario", sort=False)[["CR_AA", "CR_AL", "CR_total", "CD", "AS"]].mean()
     means[["CR_AA", "CR_AL", "CR_total"]] *= 100
     print(f"{rows['model'].iloc[0]} ({path}), {cfg.eval.n_sims} simulations x {cfg.eval.steps} steps, "
           f"seed {cfg.eval.seed}: collision rates in %, CD in cm, AS in m/s")
     print(means.round(3).to_string())
-    if args.out:
-        rows.to_csv(args.out, index=False)
-        print(f"wrote {args.out}")
+    print(f"wrote {rows_file}")
     if run_id:
         print(f"MLflow evaluation run {run_id} in experiment {cfg.tracking.experiment!r}")
 
@@ -134,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("target", help="checkpoint file, training run folder, or MLflow training run id")
     ev.add_argument("--scenario", action="append", help="CPM, Intersection, On-Ramp, Roundabout (the paper's; the default is all four), "
                     "Proc-Intersection, Proc-On-Ramp or Proc-Roundabout (procedural maps); repeatable")
-    ev.add_argument("--out", help="also write the per-simulation rows to this CSV")
+    ev.add_argument("--out", help="the CSV for the per-simulation rows (default: evaluation_rows.csv beside the checkpoint)")
     ev.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. eval.n_sims=8 eval.steps=600")
     ev.set_defaults(func=cmd_evaluate)
     sw = sub.add_parser("sweep", help="train the six models in parallel (Hydra multirun), then evaluate each")
@@ -168,14 +179,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.overrides = [*args.overrides, *extra]
     elif extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    handle_sigterm()
     try:
         rc = args.func(args)
     except SigmarlError as e:
         print(f"sigmarl: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("sigmarl: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:
+        terminated = isinstance(e, Terminated)
+        print(f"sigmarl: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return 128 + (signal.SIGTERM if terminated else signal.SIGINT)
     return rc if isinstance(rc, int) else 0
 
 

@@ -7,3 +7,8 @@ class SigmarlError(Exception):
 
 class MapError(SigmarlError):
     """A map file or map definition that cannot be used; the message names file and element."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (sent by `kill`, `timeout`, SLURM), raised like Ctrl-C: whatever handles an
+    interruption (a run ended KILLED, a half-written file removed) handles it too."""

@@ -31,12 +31,21 @@ DONE_FILE = "evaluated.txt"
 
 
 def run_job(cfg: DictConfig) -> str:
-    """Train (or resume, or skip) and evaluate one model; returns 'done' or 'failed'."""
-    from sigmarl.evaluation import records
-    from sigmarl.evaluation.study import checkpoint_name, evaluate_and_log
+    """Train (or resume, or skip) and evaluate one model; returns 'done' or 'failed'.
+
+    Every step can be killed at any instant and the job run again: training resumes from
+    `checkpoint.pt` (or starts from scratch if it never got that far) and completes the
+    MLflow record of a training that was killed after its end; evaluation logs the saved
+    `evaluation_rows.csv` if it was killed after evaluating, and is skipped once MLflow
+    holds a finished evaluation run under the same protocol.
+    """
+    from sigmarl.cli import handle_sigterm
+    from sigmarl.evaluation.study import ROWS_FILE, checkpoint_name, evaluate_and_log
+    from sigmarl.tracking import connect, experiment_id, records
     from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import train
 
+    handle_sigterm()  # in a launcher's worker process, SIGTERM must end runs as KILLED too
     run_dir = Path(cfg.run_dir)
     (run_dir / FAILED_FILE).unlink(missing_ok=True)
     try:
@@ -46,21 +55,24 @@ def run_job(cfg: DictConfig) -> str:
         if not result.finished:
             return "interrupted"
         if cfg.tracking.enabled and result.run_id:
-            client = records.client_for(cfg)
-            exp_id = records.experiment_id(client, cfg.tracking.experiment, create=True)
-            if records.finished_evaluation(client, exp_id, result.run_id, records.eval_key(cfg.eval)):
+            client = connect(cfg)
+            exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
+            if done := records.finished_evaluation(client, exp_id, result.run_id, records.eval_key(cfg.eval)):
                 print(f"{run_dir}: already evaluated")
-                (run_dir / DONE_FILE).touch()
+                (run_dir / DONE_FILE).write_text(f"{done.info.run_id}\n")
                 return "done"
         path = run_dir / checkpoint_name(cfg.eval.checkpoint)
-        rows, eval_run = evaluate_and_log(path, cfg, result.run_id, progress=False)
-        rows.to_csv(run_dir / "evaluation_rows.csv", index=False)
+        _, eval_run = evaluate_and_log(path, cfg, result.run_id, progress=False,
+                                       rows_file=run_dir / ROWS_FILE)
         (run_dir / DONE_FILE).write_text(f"{eval_run or ''}\n")
         return "done"
     except (Exception, KeyboardInterrupt) as e:
-        run_dir.mkdir(parents=True, exist_ok=True)
         message = str(e) if isinstance(e, SigmarlError) else traceback.format_exc()
-        (run_dir / FAILED_FILE).write_text(message)
+        try:
+            run_dir.mkdir(parents=True, exist_ok=True)
+            (run_dir / FAILED_FILE).write_text(message)
+        except OSError:  # an unwritable run folder is itself the error reported
+            pass
         print(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", file=sys.stderr)
         if isinstance(e, KeyboardInterrupt):
             raise
@@ -172,11 +184,10 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
 
 
 def _prepare_store(overrides: Sequence[str]) -> None:
-    """Validate every job's config, then create the MLflow store and experiment once, here:
-    parallel jobs creating a new SQLite store at the same moment would race on its schema
-    migration."""
+    """Validate every job's config, then check the MLflow store and create the experiment,
+    here, before any job starts."""
     from sigmarl.compose import compose_config
-    from sigmarl.evaluation import records
+    from sigmarl.tracking import connect, experiment_id
 
     fixed = _fixed(overrides)
     # Compose every job here, so a typo or a bad evaluation setting ends with one message
@@ -194,7 +205,7 @@ def _prepare_store(overrides: Sequence[str]) -> None:
         owner[cfg.run_dir] = job
     cfg = compose_config(fixed)
     if cfg.tracking.enabled:
-        records.experiment_id(records.client_for(cfg), cfg.tracking.experiment, create=True)
+        experiment_id(connect(cfg), cfg.tracking.experiment, create=True)
 
 
 def _fixed(overrides: Sequence[str]) -> list[str]:

@@ -1,17 +1,29 @@
-"""Evaluate a trained model (checkpoint file, run folder or MLflow run id) on the study's scenarios."""
+"""Evaluate a trained model (checkpoint file, run folder or MLflow run id) on the study's scenarios.
+
+The order makes a failure cheap: the tracking store is checked first, the rows are written
+to a file (`evaluation_rows.csv` beside the checkpoint) before they are logged, and a re-run
+whose file matches the protocol and the checkpoint logs that file instead of evaluating again.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import tempfile
 from pathlib import Path
 
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
+from sigmarl import crash
 from sigmarl.errors import SigmarlError
-from sigmarl.evaluation import records
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.study import SCENARIOS, check_eval, model_label, obs_strategies
+from sigmarl.tracking import connect, experiment_id, records
+
+ROWS_FILE = "evaluation_rows.csv"
+ROWS_META = "evaluation.json"  # the protocol and checkpoint the rows file belongs to
 
 
 def checkpoint_name(which: str) -> str:
@@ -35,7 +47,7 @@ def resolve_checkpoint(target: str, cfg: DictConfig, download_dir: Path | None =
     if "/" in target or target.endswith(".pt"):
         raise SigmarlError(f"checkpoint not found: {target}")
     # An MLflow run id: use the run's folder if it is on this machine, else its artifact.
-    client = records.client_for(cfg)
+    client = connect(cfg)
     try:
         run = client.get_run(target)
     except Exception as e:
@@ -65,6 +77,7 @@ def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] |
         rows = evaluate_policy(actor, train_cfg, scenario, n_sims=eval_cfg.n_sims, steps=eval_cfg.steps,
                                seed=eval_cfg.seed, n_agents=n_agents, device=device, progress=progress)
         frames.append(rows)
+        crash.point(f"eval:scenario:{scenario}")
     train_cfg = OmegaConf.create(state["config"])
     rows = pd.concat(frames, ignore_index=True)
     rows.insert(0, "model", model_label(train_cfg.obs))
@@ -73,14 +86,78 @@ def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] |
     return rows, state
 
 
+def rows_file_for(checkpoint: Path, cfg: DictConfig) -> Path:
+    """Where `sigmarl evaluate` keeps the rows: evaluation_rows.csv beside the checkpoint,
+    unless that holds another protocol's rows (then evaluation_rows-<protocol key>.csv)."""
+    key = records.eval_key(cfg.eval)
+    default = checkpoint.parent / ROWS_FILE
+    meta = _read_meta(default)
+    return default if meta is None or meta.get("eval_key") == key else \
+        checkpoint.parent / f"evaluation_rows-{key}.csv"
+
+
+def _meta_path(rows_file: Path) -> Path:
+    return rows_file.with_name(ROWS_META if rows_file.name == ROWS_FILE else rows_file.stem + ".json")
+
+
+def _read_meta(rows_file: Path) -> dict | None:
+    try:
+        return json.loads(_meta_path(rows_file).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _identity(path: Path, cfg: DictConfig) -> dict[str, str]:
+    return {"eval_key": records.eval_key(cfg.eval),
+            "checkpoint_sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | None:
+    meta = _read_meta(rows_file)
+    if meta is None or {k: meta.get(k) for k in identity} != identity or not rows_file.exists():
+        return None
+    return pd.read_csv(rows_file, float_precision="round_trip")
+
+
+def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) -> None:
+    """Rows first, then the note saying what they are: a kill in between leaves no note."""
+    _meta_path(rows_file).unlink(missing_ok=True)
+    _write_atomic(rows_file, rows.to_csv(index=False))
+    _write_atomic(_meta_path(rows_file), json.dumps(identity, indent=1) + "\n")
+
+
 def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scenarios=None,
-                     progress: bool = True) -> tuple[pd.DataFrame, str | None]:
-    """Evaluate a checkpoint and record it in MLflow (unless tracking is off)."""
-    rows, state = evaluate_checkpoint(path, cfg.eval, scenarios, device=cfg.device, progress=progress)
-    if not cfg.tracking.enabled:
+                     progress: bool = True, rows_file: Path | None = None,
+                     ) -> tuple[pd.DataFrame, str | None]:
+    """Evaluate a checkpoint and record it in MLflow (unless tracking is off).
+
+    The store is checked before evaluating; with `rows_file`, the rows are saved there
+    before logging, and rows saved by an earlier attempt under the same protocol and
+    checkpoint are logged without evaluating again.
+    """
+    client = connect(cfg) if cfg.tracking.enabled else None
+    identity = _identity(path, cfg) if rows_file is not None else {}
+    rows = _saved_rows(rows_file, identity) if rows_file is not None else None
+    if rows is not None:
+        from sigmarl.training.checkpoint import load
+
+        state = load(path, cfg.device)
+    else:
+        if rows_file is not None:
+            _probe(rows_file.parent)
+        rows, state = evaluate_checkpoint(path, cfg.eval, scenarios, device=cfg.device, progress=progress)
+        if rows_file is not None:
+            _save_rows(rows, rows_file, identity)
+    if client is None:
         return rows, None
-    client = records.client_for(cfg)
-    exp_id = records.experiment_id(client, cfg.tracking.experiment, create=True)
+    crash.point("eval:rows")
+    exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
     train_cfg = OmegaConf.create(state["config"])
     tags = {
         "model": str(rows["model"].iloc[0]),
@@ -94,3 +171,13 @@ def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scen
     params["checkpoint_iteration"] = str(state.get("iteration"))
     run_id = records.log_evaluation(client, exp_id, rows, tags, params)
     return rows, run_id
+
+
+def _probe(folder: Path) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as e:
+        raise SigmarlError(f"cannot write the evaluation rows to {folder} ({e.strerror}); "
+                           "use --out <file>") from e

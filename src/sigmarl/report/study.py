@@ -3,14 +3,19 @@ tables, figures, and a report run in MLflow (unless tracking.enabled=false)."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from omegaconf import DictConfig
 
-from sigmarl.evaluation import records
 from sigmarl.report.build import Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_results
 from sigmarl.study import SCENARIOS
+from sigmarl.tracking import connect, records
 
 
 def make_report(
@@ -32,21 +37,23 @@ def make_report(
     protocol.
     """
     experiment = cfg.tracking.experiment
-    client = records.client_for(cfg)
+    client = connect(cfg, write=cfg.tracking.enabled)  # reads rows; logs only if enabled
     rows = records.load_evaluation_rows(client, experiment)
     curves = records.load_training_curves(client, experiment) if figures else None
     out_dir = out_dir or Path("reports") / experiment
-    report = build_report(rows, models, out_dir=out_dir, trim=trim, compare_paper=compare_paper,
-                          latex=latex, curves=curves if curves is not None and len(curves) else None,
-                          ci=ci, figures=figures)
-    known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
-    if figures:
-        _add_maps(report, out_dir, known)
-    if animation_steps > 0:
-        report.paths.update(_animations(_mlflow_checkpoint(client, experiment), cfg, out_dir,
-                                        animation_steps, known))
+    with _staged(out_dir) as staging:
+        report = build_report(rows, models, out_dir=staging, trim=trim, compare_paper=compare_paper,
+                              latex=latex, curves=curves if curves is not None and len(curves) else None,
+                              ci=ci, figures=figures)
+        known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
+        if figures:
+            _add_maps(report, staging, known)
+        if animation_steps > 0:
+            report.paths.update(_animations(_mlflow_checkpoint(client, experiment), cfg, staging,
+                                            animation_steps, known))
+        _publish(report, staging, out_dir)
     if cfg.tracking.enabled:
-        _log_report(client, experiment, report, {
+        records.log_report(client, experiment, report.composite, report.paths.values(), {
             "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
         })
     return report
@@ -73,23 +80,51 @@ def make_report_from_folder(
     results = read_results(root)
     out_dir = out_dir or Path("reports") / root.resolve().name
     curves = results.curves if figures and len(results.curves) else None
-    report = build_report(results.rows, models, out_dir=out_dir, trim=trim, compare_paper=compare_paper,
-                          latex=latex, curves=curves, ci=ci, figures=figures, extra_notes=results.notes)
-    known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
-    if figures:
-        _add_maps(report, out_dir, known)
-    if animation_steps > 0:
-        from sigmarl.evaluation.study import checkpoint_name
+    client = connect(cfg) if cfg.tracking.enabled else None  # checked before any work
+    with _staged(out_dir) as staging:
+        report = build_report(results.rows, models, out_dir=staging, trim=trim,
+                              compare_paper=compare_paper, latex=latex, curves=curves, ci=ci,
+                              figures=figures, extra_notes=results.notes)
+        known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
+        if figures:
+            _add_maps(report, staging, known)
+        if animation_steps > 0:
+            from sigmarl.evaluation.study import checkpoint_name
 
-        path = checkpoint_of(results.runs, "M0", checkpoint_name(cfg.eval.checkpoint))
-        if path is None:
-            from sigmarl.errors import SigmarlError
+            path = checkpoint_of(results.runs, "M0", checkpoint_name(cfg.eval.checkpoint))
+            if path is None:
+                from sigmarl.errors import SigmarlError
 
-            raise SigmarlError(f"animations need M0's {checkpoint_name(cfg.eval.checkpoint)} in {root}; none found")
-        report.paths.update(_animations(path, cfg, out_dir, animation_steps, known))
-    if cfg.tracking.enabled:
-        _log_report(records.client_for(cfg), cfg.tracking.experiment, report, {"source": str(root.resolve())})
+                raise SigmarlError(f"animations need M0's {checkpoint_name(cfg.eval.checkpoint)} in {root}; none found")
+            report.paths.update(_animations(path, cfg, staging, animation_steps, known))
+        _publish(report, staging, out_dir)
+    if client is not None:
+        records.log_report(client, cfg.tracking.experiment, report.composite, report.paths.values(),
+                           {"source": str(root.resolve())})
     return report
+
+
+@contextmanager
+def _staged(out_dir: Path) -> Iterator[Path]:
+    """A staging folder inside `out_dir` for the report's files, removed afterwards: files are
+    moved in only when all are complete, so a report killed half-way (Ctrl-C, SIGTERM) leaves
+    the previous files, never a half-written one."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=out_dir))
+    try:
+        yield staging
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def _publish(report: Report, staging: Path, out_dir: Path) -> None:
+    paths = {}
+    for key, path in report.paths.items():
+        target = out_dir / Path(path).relative_to(staging)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(path, target)
+        paths[key] = target
+    report.paths = paths
 
 
 def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
@@ -98,32 +133,14 @@ def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
     report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png", scenarios)
 
 
-def _log_report(client, experiment: str, report: Report, tags: dict[str, str]) -> None:
-    """A report run: the table files, figures and composite scores, with what it was built from."""
-    exp_id = records.experiment_id(client, experiment, create=True)
-    run = client.create_run(exp_id, run_name="report", tags={"kind": "report", **tags})
-    rid = run.info.run_id
-    try:
-        for _, r in report.composite.dropna(subset=["CS"]).iterrows():
-            client.log_metric(rid, f"CS/{r['scenario']}/{r['model']}", float(r["CS"]))
-        for path in report.paths.values():
-            client.log_artifact(rid, str(path))
-        client.set_terminated(rid, "FINISHED")
-    except BaseException:
-        client.set_terminated(rid, "FAILED")
-        raise
-
-
 def _mlflow_checkpoint(client, experiment: str) -> Path:
     """M0's evaluated checkpoint (its first seed) as recorded in MLflow, if on this machine."""
     from sigmarl.errors import SigmarlError
 
-    exp_id = records.experiment_id(client, experiment)
-    runs = client.search_runs([exp_id], filter_string="tags.kind = 'evaluation' and tags.model = 'M0'",
-                              order_by=["tags.seed ASC"], max_results=1)
-    if not runs or not Path(runs[0].data.tags.get("checkpoint", "")).is_file():
+    path = records.evaluated_checkpoint(client, experiment, "M0")
+    if path is None:
         raise SigmarlError("animations need M0's evaluated checkpoint on this machine; none found")
-    return Path(runs[0].data.tags["checkpoint"])
+    return path
 
 
 def _animations(path: Path, cfg: DictConfig, out_dir: Path, steps: int, scenarios: list[str]) -> dict[str, Path]:

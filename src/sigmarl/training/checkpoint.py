@@ -1,8 +1,13 @@
 """Checkpoints: one dict per file, written atomically so a crash never leaves half a file.
 
-`checkpoint.pt` is the resume point (rewritten every few iterations), `best.pt` holds the policy
-with the best mean episode reward, `final.pt` the one after the last iteration. All three have
-the same layout, so any of them can be loaded with `load_policy`.
+`checkpoint.pt` is the resume point (kind "resume": policy, critic, optimiser, RNG states;
+written before the first iteration and every `ppo.checkpoint_every` iterations). `best.pt`
+(the policy with the best mean episode reward) and `final.pt` (after the last iteration) are
+small (kind "policy"): the policy's weights and what loading and evaluating it needs
+(config, dims, iteration, reward). Any of the three loads with `load_policy`.
+
+Everything read back is validated: a file that is not a checkpoint, lacks a key, or holds
+weights whose names or shapes differ from the network its config builds is one SigmarlError.
 """
 
 from __future__ import annotations
@@ -10,6 +15,7 @@ from __future__ import annotations
 import os
 import random
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +28,15 @@ FORMAT = 1
 RESUME_FILE = "checkpoint.pt"
 BEST_FILE = "best.pt"
 FINAL_FILE = "final.pt"
+
+POLICY_KEYS = ("iteration", "policy", "config", "dims")  # what every checkpoint holds
+RESUME_KEYS = (*POLICY_KEYS, "critic", "optimizer", "rng")
+TRAINING_ONLY = ("critic", "optimizer", "rng")  # left out of best.pt and final.pt
+
+
+def policy_only(state: dict[str, Any]) -> dict[str, Any]:
+    """A resume state cut down to what evaluation needs (kind "policy")."""
+    return {**{k: v for k, v in state.items() if k not in TRAINING_ONLY}, "kind": "policy"}
 
 
 def save_atomic(state: dict[str, Any], path: Path) -> None:
@@ -40,20 +55,66 @@ def save_atomic(state: dict[str, Any], path: Path) -> None:
         raise
 
 
-def load(path: Path, device: str | torch.device = "cpu") -> dict[str, Any]:
-    """Read a checkpoint; anything unreadable or foreign is a SigmarlError (the file is left alone)."""
+def load(path: Path, device: str | torch.device = "cpu", resume: bool = False) -> dict[str, Any]:
+    """Read a checkpoint (with `resume`, one that training can resume from); anything
+    unreadable, foreign or incomplete is a one-line SigmarlError (the file is left alone)."""
+    path = Path(path)
     if not path.is_file():
         raise SigmarlError(f"no checkpoint at {path}")
     try:
         state = torch.load(path, map_location=device, weights_only=True)
-    except Exception as e:  # torch raises many types for truncated or foreign files
-        raise SigmarlError(f"checkpoint {path} is unreadable ({type(e).__name__}: {e})") from e
+    except Exception as e:  # torch raises many types for truncated or foreign files; its
+        # message advises weights_only=False, which would run whatever the file holds
+        raise SigmarlError(f"checkpoint {path} is unreadable: truncated, or not a sigmarl "
+                           f"checkpoint ({type(e).__name__})") from e
     if not isinstance(state, dict) or state.get("format") != FORMAT:
         raise SigmarlError(f"{path} is not a sigmarl checkpoint (format {FORMAT})")
-    missing = {"iteration", "policy", "critic", "optimizer", "config", "dims"} - state.keys()
+    kind = state.get("kind", "resume")  # files written before best/final became small
+    needed = RESUME_KEYS if resume or kind == "resume" else POLICY_KEYS
+    missing = sorted(set(needed) - state.keys())
     if missing:
-        raise SigmarlError(f"checkpoint {path} lacks {sorted(missing)}")
+        what = "resume from" if resume and kind == "policy" else "use"
+        raise SigmarlError(f"checkpoint {path} lacks {missing}; cannot {what} it")
+    _check_dims(state["dims"], path)
+    for key in ("policy", "critic"):
+        if key in needed and not _tensor_dict(state[key]):
+            raise SigmarlError(f"checkpoint {path}: {key!r} is not a dict of tensors")
+    if not isinstance(state["config"], dict) or not isinstance(state["iteration"], int):
+        raise SigmarlError(f"checkpoint {path}: 'config' or 'iteration' is malformed")
     return state
+
+
+def _tensor_dict(d: Any) -> bool:
+    return isinstance(d, Mapping) and all(isinstance(v, torch.Tensor) for v in d.values())
+
+
+def _check_dims(dims: Any, path: Path) -> None:
+    ok = (
+        isinstance(dims, dict)
+        and all(isinstance(dims.get(k), int) and dims[k] > 0 for k in ("obs_dim", "n_agents"))
+        and all(isinstance(dims.get(k), torch.Tensor) and dims[k].dim() == 1
+                and dims[k].numel() > 0 for k in ("action_low", "action_high"))
+        and dims["action_low"].shape == dims["action_high"].shape
+    )
+    if not ok:
+        raise SigmarlError(f"checkpoint {path}: 'dims' is malformed (needs positive ints obs_dim, "
+                           "n_agents and equal-length 1-d tensors action_low, action_high)")
+
+
+def check_weights(found: Mapping[str, torch.Tensor], network: torch.nn.Module, what: str,
+                  path: Path) -> None:
+    """The checkpoint's tensors must be exactly the network's: same names, same shapes."""
+    expected = network.state_dict()
+    missing = sorted(expected.keys() - found.keys())
+    extra = sorted(found.keys() - expected.keys())
+    if missing or extra:
+        parts = [f"missing {missing[:3]}" if missing else "", f"unexpected {extra[:3]}" if extra else ""]
+        raise SigmarlError(f"checkpoint {path}: the {what} weights do not fit the network its "
+                           f"config builds ({'; '.join(p for p in parts if p)})")
+    for key, tensor in expected.items():
+        if tuple(found[key].shape) != tuple(tensor.shape):
+            raise SigmarlError(f"checkpoint {path}: {what} tensor {key} has shape "
+                               f"{tuple(found[key].shape)}, the network's is {tuple(tensor.shape)}")
 
 
 def rng_state() -> dict[str, Any]:

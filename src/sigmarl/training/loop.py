@@ -8,6 +8,8 @@ that iteration k+1 needs, and a resumed run ends with the same weights as an uni
 
 from __future__ import annotations
 
+import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,9 +20,11 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
+from sigmarl import crash
 from sigmarl.errors import SigmarlError
 from sigmarl.tracking import Tracker, flatten
 from sigmarl.training import checkpoint as ckpt
+from sigmarl.training import metrics_file
 from sigmarl.training.mappo import (
     collect,
     make_collector,
@@ -29,6 +33,7 @@ from sigmarl.training.mappo import (
     rollout_stats,
     update,
 )
+from sigmarl.training.metrics_file import METRICS_FILE
 from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic, make_sampler
 from sigmarl.training.ppo_loss import LOSSES
 
@@ -110,23 +115,46 @@ def config_changes(saved: dict[str, Any], cfg: DictConfig) -> list[str]:
 
 
 def _resume_point(cfg: DictConfig, run_dir: Path, device: torch.device) -> dict[str, Any] | None:
+    """The checkpoint to resume from, or None to start from scratch.
+
+    A folder without `checkpoint.pt` holds no training to continue (a run killed before its
+    first checkpoint leaves at most config.yaml and mlflow_run_id), so it starts from scratch
+    without asking; one with `checkpoint.pt` is resumed with resume=true and never overwritten.
+    """
     path = run_dir / ckpt.RESUME_FILE
-    if not cfg.resume:
-        found = [n for n in (ckpt.RESUME_FILE, ckpt.BEST_FILE, ckpt.FINAL_FILE)
-                 if (run_dir / n).exists()]
-        if found:
-            raise SigmarlError(
-                f"{run_dir} already holds a training run ({', '.join(found)}); pass resume=true "
-                "to continue it, or choose another run_dir=..."
-            )
+    if not path.exists():
+        if (run_dir / ckpt.FINAL_FILE).exists():
+            raise SigmarlError(f"{run_dir} holds a finished model ({ckpt.FINAL_FILE}) but no "
+                               f"{ckpt.RESUME_FILE}; choose another run_dir=...")
+        if cfg.resume and not run_dir.is_dir():
+            raise SigmarlError(f"no checkpoint at {path} to resume from")
+        if run_dir.is_dir() and any(run_dir.iterdir()):
+            print(f"{run_dir}: no resume point yet (stopped before its first checkpoint); "
+                  "training from scratch", file=sys.stderr)
         return None
-    state = ckpt.load(path, device)
+    if not cfg.resume:
+        raise SigmarlError(
+            f"{run_dir} already holds a training run ({ckpt.RESUME_FILE}); pass resume=true "
+            "to continue it, or choose another run_dir=..."
+        )
+    state = ckpt.load(path, device, resume=True)
     changed = config_changes(state["config"], cfg)
     if changed:
         old, new = flatten(state["config"]), flatten(OmegaConf.to_container(cfg, resolve=True))
         diffs = ", ".join(f"{k}: {old.get(k, '(default)')} -> {new.get(k)}" for k in changed[:5])
         raise SigmarlError(f"cannot resume {path} with a different config ({diffs})")
     return state
+
+
+def _writable_folder(run_dir: Path) -> None:
+    """Create the run folder and check that files can be written there, before any work."""
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=run_dir):
+            pass
+    except OSError as e:
+        raise SigmarlError(f"run folder {run_dir} is not writable ({e.strerror}); "
+                           "choose another run_dir=...") from e
 
 
 def _env_dims(env: Any) -> dict[str, Any]:
@@ -182,33 +210,32 @@ def train(cfg: DictConfig) -> TrainResult:
     device = _device(cfg.device)
     run_dir = Path(cfg.run_dir)
     state = _resume_point(cfg, run_dir, device)
-    start = state["iteration"] if state else 0
-    run_id = state.get("mlflow_run_id") if state else None
-    best = state.get("best_reward") if state else None
-    if state and start >= cfg.ppo.iterations:
-        print(f"{run_dir}: training already finished ({start} iterations)")
-        return TrainResult(run_dir, start, True, best, run_id)
+    _writable_folder(run_dir)
+    if state and state["iteration"] >= cfg.ppo.iterations:
+        return _complete(cfg, run_dir, state)
 
     parts = build(cfg, device)
     actor, critic, optimiser = parts.actor, parts.critic, parts.optimiser
     if state:
+        path = run_dir / ckpt.RESUME_FILE
+        ckpt.check_weights(state["policy"], actor, "policy", path)
+        ckpt.check_weights(state["critic"], critic, "critic", path)
         actor.load_state_dict(state["policy"])
         critic.load_state_dict(state["critic"])
-        optimiser.load_state_dict(state["optimizer"])
+        try:
+            optimiser.load_state_dict(state["optimizer"])
+        except (ValueError, KeyError, RuntimeError) as e:
+            raise SigmarlError(f"checkpoint {path}: the optimiser state does not fit ({e})") from e
         ckpt.set_rng_state(state["rng"])
+    start = state["iteration"] if state else 0
+    best = state.get("best_reward") if state else None
+    tracker = _open_tracker(cfg, run_dir, state)
+    run_id = tracker.run_id if tracker.enabled else (state or {}).get("mlflow_run_id")
 
-    tracker = Tracker.open(cfg, run_id if cfg.tracking.enabled else None)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    if tracker.enabled and tracker.run_id != run_id:
-        run_id = tracker.run_id
-        (run_dir / RUN_ID_FILE).write_text(f"{run_id}\n")
-    if not state:
-        (run_dir / CONFIG_FILE).write_text(OmegaConf.to_yaml(cfg, resolve=True))
-        tracker.log_artifact(run_dir / CONFIG_FILE)
-
-    def snapshot(iteration: int, reward: float) -> dict[str, Any]:
+    def snapshot(iteration: int, reward: float | None) -> dict[str, Any]:
         return {
             "format": ckpt.FORMAT,
+            "kind": "resume",
             "iteration": iteration,
             "policy": actor.state_dict(),
             "critic": critic.state_dict(),
@@ -225,9 +252,20 @@ def train(cfg: DictConfig) -> TrainResult:
     stop = min(ppo.stop_after, ppo.iterations) if ppo.stop_after > 0 else ppo.iterations
     pending: list[tuple[int, dict[str, float]]] = []  # metrics not yet sent (see below)
     history: list[dict[str, float]] = []
-    batches = iter(parts.collector)
+    metrics_path = run_dir / METRICS_FILE
     bar = tqdm(total=ppo.iterations, initial=start, desc="train", unit="it", dynamic_ncols=True)
     try:
+        if state:
+            # the rows after the resume point are computed again; MLflow gets what it missed
+            tracker.sync_metrics(metrics_file.truncate(metrics_path, start))
+        else:
+            (run_dir / CONFIG_FILE).write_text(OmegaConf.to_yaml(cfg, resolve=True))
+            metrics_path.unlink(missing_ok=True)
+            tracker.log_artifact(run_dir / CONFIG_FILE)
+            crash.point("train:start")
+            # a resume point before the first iteration: a kill at any later instant resumes
+            ckpt.save_atomic(snapshot(0, None), run_dir / ckpt.RESUME_FILE)
+        batches = iter(parts.collector)
         for it in range(start, stop):
             t0 = time.perf_counter()
             s = iteration_seed(cfg.seed, it)
@@ -254,22 +292,27 @@ def train(cfg: DictConfig) -> TrainResult:
             done_its = it + 1
             history.append(metrics)
             pending.append((done_its, metrics))
+            metrics_file.append(metrics_path, done_its, metrics)
+            crash.point(f"train:iteration:{done_its}")
             reward = metrics["episode_reward_mean"]
             if best is None or round(reward, 2) > best:  # the paper: best reward to 2 decimals
                 best = round(reward, 2)
-                ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.BEST_FILE)
-            last = done_its == stop
-            if done_its % ppo.checkpoint_every == 0 or last:
-                # metrics go out together with a checkpoint, so a resume never logs an
-                # iteration twice
+                ckpt.save_atomic(ckpt.policy_only(snapshot(done_its, reward)), run_dir / ckpt.BEST_FILE)
+            if done_its % ppo.checkpoint_every == 0 or done_its == stop:
+                ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.RESUME_FILE)
+                crash.point(f"train:checkpoint:{done_its}")
+                # metrics go out after their checkpoint; a kill in between is made good
+                # from metrics.csv on the next resume, so no iteration is lost or doubled
                 tracker.log_metrics(pending)
                 pending = []
-                ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.RESUME_FILE)
             if done_its == ppo.iterations:
-                ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.FINAL_FILE)
+                ckpt.save_atomic(ckpt.policy_only(snapshot(done_its, reward)), run_dir / ckpt.FINAL_FILE)
+                crash.point("train:final")
             bar.set_postfix(fps=f"{metrics['frames_per_s']:.0f}", reward=f"{reward:.3f}", refresh=False)
             bar.update(1)
-    except KeyboardInterrupt:
+        if stop == ppo.iterations:
+            _complete_record(tracker, run_dir, stop)
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM through the CLI's handler
         tracker.finish("KILLED")
         raise
     except BaseException:
@@ -279,11 +322,46 @@ def train(cfg: DictConfig) -> TrainResult:
         bar.close()
         parts.close()
     finished = stop == ppo.iterations
-    if finished:
-        tracker.log_artifact(run_dir / ckpt.BEST_FILE)
-        tracker.log_artifact(run_dir / ckpt.FINAL_FILE)
-    tracker.finish("FINISHED" if finished else "KILLED")
+    if not finished:
+        tracker.finish("KILLED")  # ppo.stop_after: stopped on purpose, resumable
     return TrainResult(run_dir, stop, finished, best, run_id, history)
+
+
+def _open_tracker(cfg: DictConfig, run_dir: Path, state: dict[str, Any] | None) -> Tracker:
+    """Reopen the resumed run, or create one; a run left by a start that was killed before
+    its first checkpoint is deleted (it holds nothing the new one will not)."""
+    old = (state or {}).get("mlflow_run_id")
+    tracker = Tracker.open(cfg, old if cfg.tracking.enabled else None)
+    id_file = run_dir / RUN_ID_FILE
+    if tracker.enabled and not state and id_file.exists():
+        Tracker(tracker.client, id_file.read_text().strip()).discard()
+    if tracker.enabled and tracker.run_id != old:
+        id_file.write_text(f"{tracker.run_id}\n")
+    return tracker
+
+
+def _complete_record(tracker: Tracker, run_dir: Path, iterations: int) -> None:
+    """Bring the finished run's MLflow record up to date (metrics, checkpoints, config)."""
+    tracker.sync_metrics(metrics_file.read(run_dir / METRICS_FILE, iterations))
+    tracker.log_missing_artifacts([run_dir / CONFIG_FILE, run_dir / ckpt.BEST_FILE,
+                                   run_dir / ckpt.FINAL_FILE])
+    tracker.finish("FINISHED")
+
+
+def _complete(cfg: DictConfig, run_dir: Path, state: dict[str, Any]) -> TrainResult:
+    """A re-run of a finished training: finish what a kill after the last iteration left
+    undone (final.pt, the MLflow record), then report it finished."""
+    iterations = state["iteration"]
+    if not (run_dir / ckpt.FINAL_FILE).exists():  # the last checkpoint holds the final weights
+        ckpt.save_atomic(ckpt.policy_only(state), run_dir / ckpt.FINAL_FILE)
+    run_id = state.get("mlflow_run_id")
+    if cfg.tracking.enabled and run_id:
+        tracker = Tracker.open(cfg, run_id, reopen=False)
+        if tracker.status() != "FINISHED":
+            print(f"{run_dir}: completing the MLflow record of the finished training")
+            _complete_record(tracker, run_dir, iterations)
+    print(f"{run_dir}: training already finished ({iterations} iterations)")
+    return TrainResult(run_dir, iterations, True, state.get("best_reward"), run_id)
 
 
 def load_policy(
@@ -295,8 +373,13 @@ def load_policy(
     """
     state = ckpt.load(Path(path), device)
     dims = state["dims"]
-    net = OmegaConf.create(state["config"]).network
-    actor = make_actor(net, dims["obs_dim"], n_agents or dims["n_agents"], dims["action_low"],
-                       dims["action_high"], device)
+    try:
+        net = OmegaConf.create(state["config"]).network
+        actor = make_actor(net, dims["obs_dim"], n_agents or dims["n_agents"], dims["action_low"],
+                           dims["action_high"], device)
+    except Exception as e:  # a config that builds no network
+        raise SigmarlError(f"checkpoint {path}: its config builds no policy ({type(e).__name__}: "
+                           f"{str(e).splitlines()[0] if str(e) else ''})") from e
+    ckpt.check_weights(state["policy"], actor, "policy", Path(path))
     actor.load_state_dict(state["policy"])
     return actor, state

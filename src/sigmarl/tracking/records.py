@@ -1,53 +1,29 @@
 """The study's evaluation and report runs in MLflow: writing them and finding them again.
 
-Training runs are written by `sigmarl.tracking.Tracker`; this module adds one
-evaluation run per trained model (tag kind=evaluation, per-simulation rows as a
-CSV artifact, scenario means as metrics) and reads them back for the report.
+One evaluation run per trained model (tag kind=evaluation, per-simulation rows as a CSV
+artifact, scenario means as metrics), one report run per `sigmarl report`, and the reads
+the report needs. A run that a kill left RUNNING is deleted before its job is logged again,
+so the store ends with one evaluation run per job and none left RUNNING.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import os
 import tempfile
+import time
+from collections.abc import Iterable
 from pathlib import Path
 
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
+from sigmarl import crash
 from sigmarl.errors import SigmarlError
 from sigmarl.study import METRIC_COLUMNS, SCENARIOS
+from sigmarl.tracking.store import experiment_id
 
 ROWS_ARTIFACT = "evaluation_rows.csv"
-# A report downloads one small CSV per run: MLflow's progress bars would only be noise.
-os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
-
-
-def client_for(cfg: DictConfig):
-    """An MlflowClient on the configured store, or a clear error if it cannot be reached."""
-    from mlflow import MlflowClient
-    from mlflow.tracking import get_tracking_uri
-
-    uri = cfg.tracking.tracking_uri or get_tracking_uri()
-    try:
-        client = MlflowClient(tracking_uri=uri)
-        client.search_experiments(max_results=1)
-    except Exception as e:
-        first = (str(e).strip().splitlines() or [type(e).__name__])[0]
-        raise SigmarlError(f"MLflow tracking store {uri!r} is unreachable: {first[:300]}") from e
-    return client
-
-
-def experiment_id(client, name: str, create: bool = False) -> str | None:
-    exp = client.get_experiment_by_name(name)
-    if exp is not None:
-        return exp.experiment_id
-    if not create:
-        return None
-    from sigmarl.tracking import _artifact_location
-
-    return client.create_experiment(name, artifact_location=_artifact_location(client.tracking_uri))
 
 
 def eval_key(eval_cfg: DictConfig) -> str:
@@ -60,41 +36,62 @@ def eval_key(eval_cfg: DictConfig) -> str:
     return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
 
-def finished_evaluation(client, exp_id: str, train_run_id: str, key: str):
-    """The FINISHED evaluation run of a training run under an evaluation protocol, if any."""
-    runs = client.search_runs(
+def _evaluations(client, exp_id: str, train_run_id: str, key: str, status: str):
+    return client.search_runs(
         [exp_id],
         filter_string=(
             f"tags.kind = 'evaluation' and tags.train_run_id = '{train_run_id}' "
-            f"and tags.eval_key = '{key}' and attributes.status = 'FINISHED'"
+            f"and tags.eval_key = '{key}' and attributes.status = '{status}'"
         ),
-        max_results=1,
     )
+
+
+def finished_evaluation(client, exp_id: str, train_run_id: str, key: str):
+    """The FINISHED evaluation run of a training run under an evaluation protocol, if any."""
+    runs = _evaluations(client, exp_id, train_run_id, key, "FINISHED")
     return runs[0] if runs else None
 
 
 def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str],
                    params: dict[str, str]) -> str:
-    """One evaluation run: rows as a CSV artifact, per-scenario means as metrics."""
+    """One evaluation run: rows as a CSV artifact, per-scenario means as metrics.
+
+    Runs of the same training run and protocol that an earlier, killed attempt left RUNNING
+    (or ended FAILED/KILLED) are deleted first: they hold part of what this run logs.
+    """
+    from mlflow.entities import Metric, Param
+
+    if tags.get("train_run_id"):
+        for status in ("RUNNING", "FAILED", "KILLED"):
+            for old in _evaluations(client, exp_id, tags["train_run_id"], tags["eval_key"], status):
+                client.delete_run(old.info.run_id)
     run = client.create_run(exp_id, run_name=f"eval-{tags.get('model', 'policy')}-seed{tags.get('seed', '')}",
                             tags={"kind": "evaluation", **tags})
     rid = run.info.run_id
     try:
-        for k, v in params.items():
-            client.log_param(rid, k, v)
         means = rows.groupby("scenario")[METRIC_COLUMNS].mean()
-        for scenario, row in means.iterrows():
-            for metric, value in row.items():
-                client.log_metric(rid, f"{scenario}/{metric}", float(value))
+        now = int(time.time() * 1000)
+        metrics = [Metric(f"{scenario}/{metric}", float(value), now, 0)
+                   for scenario, row in means.iterrows() for metric, value in row.items()]
+        client.log_batch(rid, metrics=metrics, params=[Param(k, v) for k, v in params.items()])
+        crash.point("eval:logging")
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / ROWS_ARTIFACT
             rows.to_csv(path, index=False)
             client.log_artifact(rid, str(path))
         client.set_terminated(rid, "FINISHED")
-    except BaseException:
-        client.set_terminated(rid, "FAILED")
+    except BaseException as e:
+        _end(client, rid, e)
         raise
     return rid
+
+
+def _end(client, rid: str, error: BaseException) -> None:
+    """KILLED for an interruption (Ctrl-C, SIGTERM), FAILED otherwise; never raises."""
+    try:
+        client.set_terminated(rid, "KILLED" if isinstance(error, KeyboardInterrupt) else "FAILED")
+    except Exception:
+        pass
 
 
 def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
@@ -137,3 +134,32 @@ def load_training_curves(client, experiment: str, metric: str = "episode_reward_
             rows.append({"model": run.data.tags.get("model"), "seed": run.data.tags.get("seed"),
                          "iteration": m.step, "reward": m.value})
     return pd.DataFrame(rows, columns=["model", "seed", "iteration", "reward"])
+
+
+def evaluated_checkpoint(client, experiment: str, model: str) -> Path | None:
+    """The checkpoint file of the model's first-seed evaluation, if it is on this machine."""
+    exp_id = experiment_id(client, experiment)
+    if exp_id is None:
+        return None
+    runs = client.search_runs([exp_id], filter_string=f"tags.kind = 'evaluation' and tags.model = '{model}'",
+                              order_by=["tags.seed ASC"], max_results=1)
+    path = Path(runs[0].data.tags.get("checkpoint", "")) if runs else None
+    return path if path is not None and path.is_file() else None
+
+
+def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable[Path],
+               tags: dict[str, str]) -> str:
+    """A report run: the table files, figures and composite scores, with what it was built from."""
+    exp_id = experiment_id(client, experiment, create=True)
+    run = client.create_run(exp_id, run_name="report", tags={"kind": "report", **tags})
+    rid = run.info.run_id
+    try:
+        for _, r in composite.dropna(subset=["CS"]).iterrows():
+            client.log_metric(rid, f"CS/{r['scenario']}/{r['model']}", float(r["CS"]))
+        for path in paths:
+            client.log_artifact(rid, str(path))
+        client.set_terminated(rid, "FINISHED")
+    except BaseException as e:
+        _end(client, rid, e)
+        raise
+    return rid

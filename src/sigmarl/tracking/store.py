@@ -1,0 +1,183 @@
+"""Connecting to the MLflow tracking store: fast failures, one clear line, safe first use.
+
+Every command connects here before it does any work, so a store that cannot be used ends
+the command in seconds with one line naming the problem, not after hours of training or
+minutes of evaluation:
+- HTTP stores: a few seconds' timeout and two retries (MLflow's default is seven retries
+  with exponential backoff, about four minutes);
+- SQLite stores: the folder and the file are probed first (a read-only `mlflow.db` or an
+  unwritable folder would otherwise cost two minutes of SQLAlchemy retries and pages of
+  log output); the first use of a store is serialised by a file lock beside it
+  (`mlflow.db.lock`), since two processes creating one store at the same moment both run
+  the schema migration and break it; a store left half-migrated by such a race is
+  recreated when it holds no runs, and explained otherwise.
+"""
+
+from __future__ import annotations
+
+import os
+import sqlite3
+import sys
+import tempfile
+from pathlib import Path
+from urllib.parse import urlparse
+
+from sigmarl.errors import SigmarlError
+
+# read by MLflow's REST client at each request; the user's own settings win
+os.environ.setdefault("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "2")
+os.environ.setdefault("MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR", "1")
+os.environ.setdefault("MLFLOW_HTTP_REQUEST_TIMEOUT", "10")
+# A report downloads one small CSV per run: MLflow's progress bars would only be noise.
+os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
+
+LOCK_TIMEOUT_S = 300  # another process creating the store holds the lock for seconds
+
+
+def tracking_uri(cfg) -> str:
+    """The configured URI, or MLflow's default (a SQLite `mlflow.db` in the working folder)."""
+    if cfg.tracking.tracking_uri:
+        return str(cfg.tracking.tracking_uri)
+    from mlflow.tracking import get_tracking_uri
+
+    return get_tracking_uri()
+
+
+def sqlite_file(uri: str) -> Path | None:
+    """The database file of a `sqlite:///` URI (relative to the working folder), else None."""
+    if urlparse(uri).scheme != "sqlite":
+        return None
+    db = uri.removeprefix("sqlite:///")
+    if not db or db == ":memory:" or db == uri:
+        return None
+    return Path(db.split("?", 1)[0]).absolute()
+
+
+def artifact_location(uri: str) -> str | None:
+    """Artifacts of a local SQLite store go beside the database file, not into the cwd."""
+    db = sqlite_file(uri)
+    return None if db is None else (db.resolve().parent / "mlartifacts").as_uri()
+
+
+def connect(cfg):
+    """An MlflowClient on the configured store, checked by one query; SigmarlError if unusable."""
+    uri = tracking_uri(cfg)
+    db = sqlite_file(uri)
+    if db is None:
+        return _open(uri)
+    _probe_sqlite(db)
+    from filelock import FileLock, Timeout
+
+    try:
+        with FileLock(str(db) + ".lock", timeout=LOCK_TIMEOUT_S):
+            return _open_sqlite(uri, db)
+    except Timeout as e:
+        raise SigmarlError(f"another process has held {db}.lock for {LOCK_TIMEOUT_S} s; "
+                           "if none is running, delete the lock file") from e
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return (text.splitlines()[0] if text else type(e).__name__)[:300]
+
+
+def _open(uri: str):
+    from mlflow import MlflowClient
+
+    try:
+        client = MlflowClient(tracking_uri=uri)
+        client.search_experiments(max_results=1)
+    except Exception as e:  # bad URI, refused connection, HTTP errors after the retries
+        raise SigmarlError(
+            f"MLflow tracking store {uri!r} is unreachable or not usable: {_first_line(e)} "
+            "(set tracking.tracking_uri=..., or tracking.enabled=false to run without it)"
+        ) from e
+    return client
+
+
+def _probe_sqlite(db: Path) -> None:
+    """The folder must be writable (SQLite writes its journal beside the file), the file too."""
+    folder = db.parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise SigmarlError(f"cannot create folder {folder} for the MLflow store {db.name}: {e.strerror}") from e
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as e:
+        raise SigmarlError(
+            f"folder {folder} of the MLflow store {db.name} is not writable ({e.strerror}); "
+            "SQLite writes its journal there (set tracking.tracking_uri=sqlite:///<writable path>)"
+        ) from e
+    if db.exists():
+        try:
+            with open(db, "r+b"):
+                pass
+        except OSError as e:
+            raise SigmarlError(f"MLflow store {db} is not writable ({e.strerror})") from e
+
+
+def _open_sqlite(uri: str, db: Path):
+    """Open (creating or migrating) the store; recreate it if a migration broke it empty."""
+    try:
+        return _open_raw(uri)
+    except Exception as e:
+        runs = _user_records(db)
+        if runs != 0 or "locked" in str(e):  # holds something (or is busy): never delete it
+            held = "" if not runs else f"; it holds {runs} runs or experiments: back it up, " \
+                f"then run `mlflow db upgrade {uri}`, or move it away to start a new store"
+            raise SigmarlError(f"MLflow store {db} cannot be opened: {_first_line(e)}{held}") from e
+        print(f"sigmarl: {db} was left half-created (an interrupted schema migration) and holds "
+              "no runs; creating it again", file=sys.stderr)
+        for suffix in ("", "-journal", "-wal", "-shm"):
+            Path(f"{db}{suffix}").unlink(missing_ok=True)
+    try:
+        return _open_raw(uri)
+    except Exception as e:
+        raise SigmarlError(f"MLflow store {db} cannot be created: {_first_line(e)}") from e
+
+
+def _open_raw(uri: str):
+    from mlflow import MlflowClient
+
+    client = MlflowClient(tracking_uri=uri)
+    client.search_experiments(max_results=1)
+    return client
+
+
+def _user_records(db: Path) -> int | None:
+    """Runs plus experiments other than MLflow's Default in the SQLite file; None if unreadable."""
+    try:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
+        try:
+            tables = {r[0] for r in con.execute("select name from sqlite_master where type='table'")}
+            count = 0
+            if "runs" in tables:
+                count += int(con.execute("select count(*) from runs").fetchone()[0])
+            if "experiments" in tables:
+                count += int(con.execute(
+                    "select count(*) from experiments where name != 'Default'").fetchone()[0])
+            return count
+        finally:
+            con.close()
+    except sqlite3.Error:
+        return None
+
+
+def experiment_id(client, name: str, create: bool = False) -> str | None:
+    """The experiment's id; created (artifacts beside a SQLite store) if asked, else None."""
+    exp = client.get_experiment_by_name(name)
+    if exp is not None:
+        return exp.experiment_id
+    if not create:
+        return None
+    from mlflow.exceptions import MlflowException
+
+    try:
+        return client.create_experiment(name, artifact_location=artifact_location(client.tracking_uri))
+    except MlflowException:  # another process created it in the meantime
+        exp = client.get_experiment_by_name(name)
+        if exp is None:
+            raise
+        return exp.experiment_id
