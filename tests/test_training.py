@@ -134,6 +134,26 @@ def test_resumed_mlflow_run_has_each_iteration_once(runs) -> None:
     )
 
 
+def test_metrics_csv_holds_each_iteration_once_with_the_logged_values(runs) -> None:
+    import pandas as pd
+    from mlflow import MlflowClient
+
+    timing = ["frames_per_s", "time_collect_s", "time_advantage_s", "time_optimise_s"]
+    full = pd.read_csv(runs.root / "full" / "metrics.csv")
+    assert list(full["iteration"]) == [1, 2, 3]
+    for key, values in full.drop(columns="iteration").items():
+        assert list(values) == [h[key] for h in runs.full.history], key
+    # the resumed run recomputed iteration 1's row once, not twice, with the same values
+    resumed = pd.read_csv(runs.root / "resumed" / "metrics.csv")
+    assert list(resumed["iteration"]) == [1, 2, 3]
+    pd.testing.assert_frame_equal(resumed.drop(columns=timing), full.drop(columns=timing))
+    client = MlflowClient(runs.uri)
+    run_id = (runs.root / "resumed" / "mlflow_run_id").read_text().strip()
+    for key in ("episode_reward_mean", "loss_critic", "frames_per_s"):
+        history = sorted(client.get_metric_history(run_id, key), key=lambda m: m.step)
+        assert [m.value for m in history] == list(resumed[key]), key
+
+
 def test_finished_run_resumes_to_nothing(runs, capsys) -> None:
     before = (runs.root / "full" / ckpt.FINAL_FILE).read_bytes()
     assert main(["train", *SMOKE, "tracking.enabled=false", f"run_dir={runs.root}/full",

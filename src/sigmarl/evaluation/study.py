@@ -122,14 +122,17 @@ def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | Non
     meta = _read_meta(rows_file)
     if meta is None or {k: meta.get(k) for k in identity} != identity or not rows_file.exists():
         return None
-    return pd.read_csv(rows_file, float_precision="round_trip")
+    # the columns' own types (float32 metrics) make the values read back exactly those written
+    exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+    return pd.read_csv(rows_file, dtype=meta.get("dtypes"), **exact)
 
 
 def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) -> None:
     """Rows first, then the note saying what they are: a kill in between leaves no note."""
     _meta_path(rows_file).unlink(missing_ok=True)
     _write_atomic(rows_file, rows.to_csv(index=False))
-    _write_atomic(_meta_path(rows_file), json.dumps(identity, indent=1) + "\n")
+    meta = {**identity, "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
+    _write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
 
 
 def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scenarios=None,

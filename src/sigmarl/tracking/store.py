@@ -15,6 +15,7 @@ minutes of evaluation:
 
 from __future__ import annotations
 
+import logging
 import os
 import sqlite3
 import sys
@@ -61,6 +62,9 @@ def artifact_location(uri: str) -> str | None:
 
 def connect(cfg):
     """An MlflowClient on the configured store, checked by one query; SigmarlError if unusable."""
+    # creating or migrating a store is routine, not news: keep its INFO lines off the terminal
+    for name in ("mlflow.store.db.utils", "alembic"):
+        logging.getLogger(name).setLevel(logging.WARNING)
     uri = tracking_uri(cfg)
     db = sqlite_file(uri)
     if db is None:
@@ -130,12 +134,24 @@ def _open_sqlite(uri: str, db: Path):
             raise SigmarlError(f"MLflow store {db} cannot be opened: {_first_line(e)}{held}") from e
         print(f"sigmarl: {db} was left half-created (an interrupted schema migration) and holds "
               "no runs; creating it again", file=sys.stderr)
+        _forget_engines(db)
         for suffix in ("", "-journal", "-wal", "-shm"):
             Path(f"{db}{suffix}").unlink(missing_ok=True)
     try:
         return _open_raw(uri)
     except Exception as e:
         raise SigmarlError(f"MLflow store {db} cannot be created: {_first_line(e)}") from e
+
+
+def _forget_engines(db: Path) -> None:
+    """Close this process's connections to `db`: MLflow keeps one engine per URI, whose
+    pooled connections would go on reading a deleted file."""
+    from mlflow.store.tracking.sqlalchemy_store import SqlAlchemyStore
+
+    for key, engine in list(SqlAlchemyStore._engine_map.items()):
+        if engine.url.database and Path(engine.url.database).absolute() == db:
+            SqlAlchemyStore._engine_map.pop(key, None)
+            engine.dispose()
 
 
 def _open_raw(uri: str):

@@ -214,23 +214,18 @@ def train(cfg: DictConfig) -> TrainResult:
     if state and state["iteration"] >= cfg.ppo.iterations:
         return _complete(cfg, run_dir, state)
 
-    parts = build(cfg, device)
-    actor, critic, optimiser = parts.actor, parts.critic, parts.optimiser
-    if state:
-        path = run_dir / ckpt.RESUME_FILE
-        ckpt.check_weights(state["policy"], actor, "policy", path)
-        ckpt.check_weights(state["critic"], critic, "critic", path)
-        actor.load_state_dict(state["policy"])
-        critic.load_state_dict(state["critic"])
-        try:
-            optimiser.load_state_dict(state["optimizer"])
-        except (ValueError, KeyError, RuntimeError) as e:
-            raise SigmarlError(f"checkpoint {path}: the optimiser state does not fit ({e})") from e
-        ckpt.set_rng_state(state["rng"])
     start = state["iteration"] if state else 0
     best = state.get("best_reward") if state else None
-    tracker = _open_tracker(cfg, run_dir, state)
+    tracker = _open_tracker(cfg, run_dir, state)  # the store is checked before any work
     run_id = tracker.run_id if tracker.enabled else (state or {}).get("mlflow_run_id")
+    try:
+        parts = build(cfg, device)
+        if state:
+            _load_state(parts, state, run_dir / ckpt.RESUME_FILE)
+    except BaseException as e:
+        tracker.finish("KILLED" if isinstance(e, KeyboardInterrupt) else "FAILED")
+        raise
+    actor, critic, optimiser = parts.actor, parts.critic, parts.optimiser
 
     def snapshot(iteration: int, reward: float | None) -> dict[str, Any]:
         return {
@@ -325,6 +320,19 @@ def train(cfg: DictConfig) -> TrainResult:
     if not finished:
         tracker.finish("KILLED")  # ppo.stop_after: stopped on purpose, resumable
     return TrainResult(run_dir, stop, finished, best, run_id, history)
+
+
+def _load_state(parts: Parts, state: dict[str, Any], path: Path) -> None:
+    """Weights, optimiser and generators of a resume point, checked against the networks."""
+    ckpt.check_weights(state["policy"], parts.actor, "policy", path)
+    ckpt.check_weights(state["critic"], parts.critic, "critic", path)
+    parts.actor.load_state_dict(state["policy"])
+    parts.critic.load_state_dict(state["critic"])
+    try:
+        parts.optimiser.load_state_dict(state["optimizer"])
+    except (ValueError, KeyError, RuntimeError) as e:
+        raise SigmarlError(f"checkpoint {path}: the optimiser state does not fit ({e})") from e
+    ckpt.set_rng_state(state["rng"])
 
 
 def _open_tracker(cfg: DictConfig, run_dir: Path, state: dict[str, Any] | None) -> Tracker:
