@@ -46,20 +46,8 @@ def resolve_checkpoint(target: str, cfg: DictConfig, download_dir: Path | None =
         raise SigmarlError(f"{path} holds no {name} (has the training finished? see eval.checkpoint)")
     if "/" in target or target.endswith(".pt"):
         raise SigmarlError(f"checkpoint not found: {target}")
-    # An MLflow run id: use the run's folder if it is on this machine, else its artifact.
-    client = connect(cfg)
-    try:
-        run = client.get_run(target)
-    except Exception as e:
-        raise SigmarlError(f"{target!r} is neither a checkpoint file, a run folder nor an MLflow run id") from e
-    local = Path(run.data.params.get("run_dir", "")) / name
-    if local.is_file():
-        return local
-    try:
-        out = download_dir or Path(tempfile.mkdtemp(prefix="sigmarl-ckpt-"))
-        return Path(client.download_artifacts(target, name, str(out)))
-    except Exception as e:
-        raise SigmarlError(f"MLflow run {target} has no {name} artifact") from e
+    out = download_dir or Path(tempfile.mkdtemp(prefix="sigmarl-ckpt-"))
+    return records.training_checkpoint(connect(cfg), target, name, out)
 
 
 def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] | None = None,

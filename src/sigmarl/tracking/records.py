@@ -147,6 +147,22 @@ def evaluated_checkpoint(client, experiment: str, model: str) -> Path | None:
     return path if path is not None and path.is_file() else None
 
 
+def training_checkpoint(client, run_id: str, name: str, download_dir: Path) -> Path:
+    """Checkpoint `name` of a training run: in its run folder if that is on this machine,
+    else downloaded from the run's artifacts."""
+    try:
+        run = client.get_run(run_id)
+    except Exception as e:
+        raise SigmarlError(f"{run_id!r} is neither a checkpoint file, a run folder nor an MLflow run id") from e
+    local = Path(run.data.params.get("run_dir", "")) / name
+    if local.is_file():
+        return local
+    try:
+        return Path(client.download_artifacts(run_id, name, str(download_dir)))
+    except Exception as e:
+        raise SigmarlError(f"MLflow run {run_id} has no {name} artifact") from e
+
+
 def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable[Path],
                tags: dict[str, str]) -> str:
     """A report run: the table files, figures and composite scores, with what it was built from."""
