@@ -229,18 +229,24 @@ def sigterm_while_drawing() -> None:
     Figure.savefig = savefig
 
 
-def test_a_report_killed_while_drawing_leaves_no_empty_figure(tmp_path: Path) -> None:
+def _store_with_evaluations(folder: Path, experiment: str) -> str:
+    """A store holding evaluation runs of M0 and M1 (hand-made rows); returns its URI."""
     from sigmarl.study import METRIC_COLUMNS, SCENARIOS
     from sigmarl.tracking import experiment_id, records
 
-    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    uri = f"sqlite:///{folder}/mlflow.db"
     client = connect(compose_config([f"tracking.tracking_uri={uri}"]))
-    exp_id = experiment_id(client, "rep", create=True)
+    exp_id = experiment_id(client, experiment, create=True)
     for model in ("M0", "M1"):
         rows = pd.DataFrame([{"model": model, "obs": model, "seed": 0, "scenario": s,
                               "simulation": i, **{m: 0.1 * i for m in METRIC_COLUMNS}}
                              for s in SCENARIOS for i in range(3)])
         records.log_evaluation(client, exp_id, rows, {"model": model, "seed": "0"}, {})
+    return uri
+
+
+def test_a_report_killed_while_drawing_leaves_no_empty_figure(tmp_path: Path) -> None:
+    uri = _store_with_evaluations(tmp_path, "rep")
     out = tmp_path / "report"
     proc = forked.run(["report", "--out", str(out), f"tracking.tracking_uri={uri}",
                        "tracking.experiment=rep"], tmp_path, prelude=f"{__name__}:sigterm_while_drawing")
@@ -388,12 +394,15 @@ def test_rows_saved_before_logging_are_logged_without_evaluating_again(trained, 
 
 
 def test_a_read_only_store_file_is_one_line_naming_it(tmp_path, capsys) -> None:
-    uri = f"sqlite:///{tmp_path}/mlflow.db"
-    connect(compose_config([f"tracking.tracking_uri={uri}"])).create_experiment("x")
+    uri = _store_with_evaluations(tmp_path, "x")
+    report = ["report", "--no-figures", f"tracking.tracking_uri={uri}", "tracking.experiment=x",
+              "--out", str(tmp_path / "report")]
     with read_only(tmp_path / "mlflow.db"):
-        rc = main(["report", f"tracking.tracking_uri={uri}", "tracking.experiment=x"])
-    err = capsys.readouterr().err.strip()
-    assert rc == 2 and len(err.splitlines()) == 1 and str(tmp_path / "mlflow.db") in err
+        rc = main(report)  # it would log a report run
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and len(err.splitlines()) == 1 and str(tmp_path / "mlflow.db") in err
+        # only reading it is fine
+        assert main([*report, "tracking.enabled=false"]) == 0
 
 
 def test_an_unwritable_working_folder_is_one_line_naming_it(tmp_path, capsys, monkeypatch) -> None:

@@ -47,7 +47,7 @@ def resolve_checkpoint(target: str, cfg: DictConfig, download_dir: Path | None =
     if "/" in target or target.endswith(".pt"):
         raise SigmarlError(f"checkpoint not found: {target}")
     out = download_dir or Path(tempfile.mkdtemp(prefix="sigmarl-ckpt-"))
-    return records.training_checkpoint(connect(cfg), target, name, out)
+    return records.training_checkpoint(connect(cfg, write=False), target, name, out)
 
 
 def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] | None = None,

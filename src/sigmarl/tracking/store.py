@@ -60,14 +60,18 @@ def artifact_location(uri: str) -> str | None:
     return None if db is None else (db.resolve().parent / "mlartifacts").as_uri()
 
 
-def connect(cfg):
-    """An MlflowClient on the configured store, checked by one query; SigmarlError if unusable."""
+def connect(cfg, write: bool = True):
+    """An MlflowClient on the configured store, checked by one query; SigmarlError if unusable.
+
+    With `write=False` (a command that only reads), an existing SQLite store is opened as it
+    is: a read-only copy of a study can still be reported on.
+    """
     # creating or migrating a store is routine, not news: keep its INFO lines off the terminal
     for name in ("mlflow.store.db.utils", "alembic"):
         logging.getLogger(name).setLevel(logging.WARNING)
     uri = tracking_uri(cfg)
     db = sqlite_file(uri)
-    if db is None:
+    if db is None or (not write and db.is_file()):
         return _open(uri)
     _probe_sqlite(db)
     from filelock import FileLock, Timeout
