@@ -192,7 +192,7 @@ def test_env_spawns_the_papers_agent_counts(env_factory, key):
 def test_evaluation_key_names_the_maps(monkeypatch):
     """Rows evaluated under Table I's names on other maps (the procedural ones, before the
     paper's maps existed) are never taken for the paper's: the evaluation key holds the maps."""
-    from sigmarl.evaluation import records
+    from sigmarl.tracking import records
 
     eval_cfg = compose_config([]).eval
     key = records.eval_key(eval_cfg)
