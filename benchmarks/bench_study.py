@@ -21,7 +21,7 @@ from pathlib import Path
 
 import torch
 
-from sigmarl.study import MODELS
+from sigmarl.ablation import MODELS
 
 SMOKE = ["study=quick", "ppo=smoke", "eval.n_sims=2", "eval.steps=30"]
 

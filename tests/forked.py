@@ -17,7 +17,7 @@ from pathlib import Path
 
 _context = None
 PRELOAD = ["forked", "sigmarl.cli", "sigmarl.sweep", "sigmarl.training.loop",
-           "sigmarl.evaluation.study", "sigmarl.report.study", "mlflow", "pandas"]
+           "sigmarl.evaluation.protocol", "sigmarl.report.command", "mlflow", "pandas"]
 
 
 def _ctx():

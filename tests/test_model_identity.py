@@ -7,8 +7,8 @@ import itertools
 
 import pytest
 
+from sigmarl.ablation import MODELS, OBS_FLAGS, model_label, obs_strategies
 from sigmarl.compose import compose_config
-from sigmarl.study import MODELS, OBS_FLAGS, model_label, obs_strategies
 
 # Table I's definition: M0 uses all five strategies, Mk leaves out the k-th of E, V, DA, DB, DC.
 PAPER = {"M0": "E,V,DA,DB,DC", "M1": "V,DA,DB,DC", "M2": "E,DA,DB,DC", "M3": "E,V,DB,DC",
@@ -56,7 +56,7 @@ def test_training_evaluation_and_tags_agree_on_the_label(tmp_path) -> None:
     # `obs=full obs.ego_view=false` is M1 everywhere: run folder, MLflow tags, evaluation rows.
     from mlflow.tracking import MlflowClient
 
-    from sigmarl.evaluation.study import evaluate_and_log
+    from sigmarl.evaluation.protocol import evaluate_and_log
     from sigmarl.training import train
 
     uri = f"sqlite:///{tmp_path}/mlflow.db"

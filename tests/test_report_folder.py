@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 from mlflow import MlflowClient
 
+from sigmarl.ablation import METRIC_COLUMNS, PAPER_SCENARIOS
 from sigmarl.cli import main
 from sigmarl.report.folder import read_results
-from sigmarl.study import METRIC_COLUMNS, PAPER_SCENARIOS
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 TABLE_FILES = ["table.md", "table.csv", "table.tex", "summary.csv", "composite_scores.csv",

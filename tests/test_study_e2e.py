@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 from mlflow import MlflowClient
 
+from sigmarl.ablation import METRIC_COLUMNS, MODELS, PAPER_SCENARIOS
 from sigmarl.cli import main
-from sigmarl.study import METRIC_COLUMNS, MODELS, PAPER_SCENARIOS
 
 pytestmark = pytest.mark.slow
 

@@ -78,7 +78,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     from omegaconf import open_dict
 
     from sigmarl.compose import compose_config
-    from sigmarl.evaluation.study import evaluate_and_log, resolve_checkpoint, rows_file_for
+    from sigmarl.evaluation.protocol import evaluate_and_log, resolve_checkpoint, rows_file_for
 
     cfg = compose_config(args.overrides)
     if args.scenario:
@@ -105,7 +105,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> None:
     from sigmarl.compose import compose_config
-    from sigmarl.report.study import make_report, make_report_from_folder
+    from sigmarl.report.command import make_report, make_report_from_folder
 
     cfg = compose_config(args.overrides)
     models = args.models.split(",") if args.models else None

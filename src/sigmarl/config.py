@@ -12,7 +12,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, OmegaConf
 
-from sigmarl.study import PAPER_SCENARIOS, model_label
+from sigmarl.ablation import PAPER_SCENARIOS, model_label
 
 
 @dataclass
@@ -109,7 +109,7 @@ class PPOConfig:
 class EvalConfig:
     """Evaluation protocol (study.md section 3): the same seed for every model."""
 
-    # Table I's four by default; any of sigmarl.study.SCENARIOS (study=extended: all seven)
+    # Table I's four by default; any of sigmarl.ablation.SCENARIOS (study=extended: all seven)
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
     n_sims: int = 32
     steps: int = 1200

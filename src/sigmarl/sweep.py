@@ -23,8 +23,8 @@ from hydra.core.override_parser.types import Override
 from hydra.errors import HydraException
 from omegaconf import DictConfig, open_dict
 
+from sigmarl.ablation import MODELS, check_eval
 from sigmarl.errors import SigmarlError
-from sigmarl.study import MODELS, check_eval
 
 FAILED_FILE = "failed.txt"
 DONE_FILE = "evaluated.txt"
@@ -40,7 +40,7 @@ def run_job(cfg: DictConfig) -> str:
     holds a finished evaluation run under the same protocol.
     """
     from sigmarl.cli import handle_sigterm
-    from sigmarl.evaluation.study import ROWS_FILE, checkpoint_name, evaluate_and_log
+    from sigmarl.evaluation.protocol import ROWS_FILE, checkpoint_name, evaluate_and_log
     from sigmarl.tracking import connect, experiment_id, records
     from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import train

@@ -19,7 +19,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from sigmarl.compose import compose_config
-from sigmarl.evaluation.study import evaluate_checkpoint
+from sigmarl.evaluation.protocol import evaluate_checkpoint
 from sigmarl.training import train
 
 OUT = Path(__file__).parent / "results"

@@ -15,10 +15,10 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from tqdm.auto import tqdm
 
+from sigmarl.ablation import SCENARIOS
 from sigmarl.compose import map_config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
-from sigmarl.study import SCENARIOS
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")

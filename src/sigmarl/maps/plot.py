@@ -15,9 +15,9 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from sigmarl.ablation import PAPER_SCENARIOS
+from sigmarl.ablation import SCENARIOS as STUDY_SCENARIOS
 from sigmarl.maps.model import RoadMap
-from sigmarl.study import PAPER_SCENARIOS
-from sigmarl.study import SCENARIOS as STUDY_SCENARIOS
 
 _ROAD = "#e6e6e6"
 _EDGE = "#555555"

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from sigmarl.ablation import METRIC_COLUMNS, MODELS, SCENARIOS
 from sigmarl.errors import SigmarlError
 from sigmarl.report import bootstrap as bs
 from sigmarl.report.stats import mean_ci
-from sigmarl.study import METRIC_COLUMNS, MODELS, SCENARIOS
 
 COLLISION_COLUMNS = ("CR_AA", "CR_AL", "CR_total")
 # Units as the paper's reference CSV writes them.

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from sigmarl.ablation import MODELS
 from sigmarl.report.aggregate import cells, model_order, scenario_order, summarise, validate_rows
 from sigmarl.report.composite import composite_scores
 from sigmarl.report.paper import paper_values
@@ -19,7 +20,6 @@ from sigmarl.report.tables import (
     to_latex,
     to_markdown,
 )
-from sigmarl.study import MODELS
 
 # Fixed formatting of every CSV's floats: the same rows give byte-identical files.
 FLOAT_FORMAT = "%.10g"

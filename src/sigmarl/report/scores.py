@@ -15,9 +15,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from sigmarl.ablation import METRIC_COLUMNS
 from sigmarl.report import bootstrap as bs
 from sigmarl.report.aggregate import Cell, scenario_order, trim_collisions, validate_rows
-from sigmarl.study import METRIC_COLUMNS
 
 _SCORE_SIGNS = {"CR_total": -1.0, "CD": -1.0, "AS": 1.0}
 _COLS = [METRIC_COLUMNS.index(m) for m in _SCORE_SIGNS]

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
+from sigmarl.ablation import METRIC_COLUMNS
 from sigmarl.report.aggregate import UNITS
-from sigmarl.study import METRIC_COLUMNS
 
 ROW_METRICS = [*METRIC_COLUMNS, "CS"]
 LOWER_IS_BETTER = frozenset({"CR_AA", "CR_AL", "CR_total", "CD"})

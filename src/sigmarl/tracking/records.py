@@ -19,8 +19,8 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from sigmarl import crash
+from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS
 from sigmarl.errors import SigmarlError
-from sigmarl.study import METRIC_COLUMNS, SCENARIOS
 from sigmarl.tracking.store import experiment_id
 
 ROWS_ARTIFACT = "evaluation_rows.csv"

@@ -17,8 +17,8 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from sigmarl.ablation import model_label, obs_strategies
 from sigmarl.errors import SigmarlError
-from sigmarl.study import model_label, obs_strategies
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import connect, experiment_id
 

@@ -12,9 +12,9 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
+from sigmarl.ablation import SCENARIOS
 from sigmarl.report.build import Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_results
-from sigmarl.study import SCENARIOS
 from sigmarl.tracking import connect, records
 
 
@@ -89,7 +89,7 @@ def make_report_from_folder(
         if figures:
             _add_maps(report, staging, known)
         if animation_steps > 0:
-            from sigmarl.evaluation.study import checkpoint_name
+            from sigmarl.evaluation.protocol import checkpoint_name
 
             path = checkpoint_of(results.runs, "M0", checkpoint_name(cfg.eval.checkpoint))
             if path is None:

@@ -17,9 +17,9 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from sigmarl import crash
+from sigmarl.ablation import SCENARIOS, check_eval, model_label, obs_strategies
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
-from sigmarl.study import SCENARIOS, check_eval, model_label, obs_strategies
 from sigmarl.tracking import connect, experiment_id, records
 
 ROWS_FILE = "evaluation_rows.csv"
