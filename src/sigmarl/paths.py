@@ -1,4 +1,10 @@
-"""Where the Hydra config tree lives."""
+"""Where the Hydra config tree lives.
+
+The tree is kept at the top of the repository (`conf/`) and reached from the package through
+the symlink `src/sigmarl/conf -> ../../conf`: the same path serves a checkout on PYTHONPATH, an
+editable install and a wheel (building follows the link and ships real files as
+`sigmarl/conf/`).
+"""
 
 from __future__ import annotations
 
@@ -7,7 +13,7 @@ from pathlib import Path
 
 
 def conf_dir() -> Path:
-    """conf/ of the checkout (editable install) or $SIGMARL_CONF."""
+    """The package's conf/ (see above), or $SIGMARL_CONF."""
     if env := os.environ.get("SIGMARL_CONF"):
         return Path(env).resolve()
-    return (Path(__file__).resolve().parents[2] / "conf").resolve()
+    return (Path(__file__).resolve().parent / "conf").resolve()
