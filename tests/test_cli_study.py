@@ -14,17 +14,21 @@ def test_sweep_defaults_cover_the_six_models_with_one_job_per_core():
     out = sweep_overrides([], cores=2)
     assert "obs=full,no_ego_view,no_vertices,no_distance_to_agents,no_distance_to_boundaries,no_distance_to_center_line" in out
     assert "seed=0" in out and "hydra/launcher=joblib" in out
-    assert "hydra.launcher.n_jobs=2" in out and "threads=1" in out
+    assert "hydra.launcher.n_jobs=2" in out
+    assert not any(o.startswith("threads=") for o in out)  # each job sets it from its grant
 
 
 def test_sweep_shorthands():
     out = sweep_overrides(["models=[M0,M4]", "seeds=[0,1,2]"], cores=16)
     assert "obs=full,no_distance_to_boundaries" in out and "seed=0,1,2" in out
-    # 6 jobs on 16 cores: all at once, 2 threads each
-    assert "hydra.launcher.n_jobs=6" in out and "threads=2" in out
+    # 6 jobs on 16 cores: all at once
+    assert "hydra.launcher.n_jobs=6" in out
     # the user's own choices win
     out = sweep_overrides(["hydra.launcher.n_jobs=1", "threads=4"], cores=2)
     assert "hydra.launcher.n_jobs=1" in out and out.count("threads=4") == 1
+    # another launcher gets no joblib settings
+    out = sweep_overrides(["hydra/launcher=slurm"], cores=2)
+    assert not any(o.startswith("hydra.launcher.n_jobs") for o in out)
 
 
 def test_sweep_unknown_model():

@@ -15,6 +15,7 @@ import math
 import os
 import sys
 import traceback
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from omegaconf import DictConfig, open_dict
 
 from sigmarl.ablation import MODELS, check_eval
 from sigmarl.errors import SigmarlError
+from sigmarl.resources import enter_sweep_folder, job_threads
 
 FAILED_FILE = "failed.txt"
 DONE_FILE = "evaluated.txt"
@@ -46,11 +48,13 @@ def run_job(cfg: DictConfig) -> str:
     from sigmarl.training.loop import train
 
     handle_sigterm()  # in a launcher's worker process, SIGTERM must end runs as KILLED too
+    enter_sweep_folder()
     run_dir = Path(cfg.run_dir)
     (run_dir / FAILED_FILE).unlink(missing_ok=True)
     try:
         with open_dict(cfg):
             cfg.resume = (run_dir / ckpt.RESUME_FILE).exists()
+            cfg.threads = job_threads(cfg.threads)
         result = train(cfg)
         if not result.finished:
             return "interrupted"
@@ -149,10 +153,9 @@ def sweep_overrides(user: Sequence[str], cores: int | None = None) -> list[str]:
     jobs = min(n_jobs, cores)
     if "hydra/launcher" not in keys:
         out.append("hydra/launcher=joblib")
-    if "hydra.launcher.n_jobs" not in keys:
-        out.append(f"hydra.launcher.n_jobs={jobs}")
-    if "threads" not in keys:
-        out.append(f"threads={max(1, cores // jobs)}")
+        if "hydra.launcher.n_jobs" not in keys:
+            out.append(f"hydra.launcher.n_jobs={jobs}")
+    # `threads` is set in each job from what its launcher granted it (sigmarl.resources).
     return out
 
 
@@ -170,6 +173,9 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
     from sigmarl.config import register_configs
     from sigmarl.paths import conf_dir
 
+    # conf/hydra/launcher/ray.yaml takes the Ray plugin's config name on purpose (a ready config
+    # behind `hydra/launcher=ray`); Hydra warns that it validates it against the plugin's schema.
+    warnings.filterwarnings("ignore", message=r"(?s).*validated against ConfigStore schema")
     overrides = sweep_overrides(user_overrides)
     register_configs()
     _prepare_store(overrides)

@@ -1,0 +1,65 @@
+"""A sweep job on whatever machine its launcher chose: threads from what the launcher granted
+the job, not from the machine that started the sweep (a SLURM login node or a Ray head may have
+many more cores than a job got), and the sweep's folder as the working folder."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+
+def granted_threads(launcher: Mapping[str, Any], environ: Mapping[str, str] = os.environ,
+                    ray_cpus: float | None = None, cores: int | None = None) -> int:
+    """CPU threads for one job, first of: SLURM's grant (SLURM_CPUS_PER_TASK, set on a real
+    cluster, also through submitit), the CPUs Ray assigned to this task, the launcher config's
+    `cpus_per_task` (submitit's local executor, which sets no variable), the cores this process
+    may run on divided among joblib's `n_jobs`."""
+    if environ.get("SLURM_CPUS_PER_TASK"):
+        return max(1, int(environ["SLURM_CPUS_PER_TASK"]))
+    if ray_cpus:
+        return max(1, int(ray_cpus))
+    if launcher.get("cpus_per_task"):
+        return int(launcher["cpus_per_task"])
+    cores = cores or len(os.sched_getaffinity(0))
+    return max(1, cores // int(launcher.get("n_jobs") or 1))
+
+
+def job_threads(configured: int) -> int:
+    """`threads` for the running Hydra job: the user's `threads=` override if given, else
+    granted_threads from the job's launcher config and environment."""
+    from hydra.core.hydra_config import HydraConfig
+
+    if not HydraConfig.initialized():
+        return configured
+    hydra = HydraConfig.get()
+    if user_set("threads", hydra.overrides.task):
+        return configured
+    return granted_threads(hydra.launcher, ray_cpus=_ray_cpus())
+
+
+def user_set(key: str, overrides: Sequence[str]) -> bool:
+    return any(o.split("=", 1)[0].lstrip("+~") == key for o in overrides)
+
+
+def _ray_cpus() -> float | None:
+    """The CPUs Ray assigned to the current task; None outside a Ray worker."""
+    import sys
+
+    if "ray" not in sys.modules:
+        return None
+    import ray
+
+    if not ray.is_initialized():
+        return None
+    return ray.get_runtime_context().get_assigned_resources().get("CPU")
+
+
+def enter_sweep_folder() -> None:
+    """Work in the folder the sweep was started from (Hydra's runtime.cwd), so that relative
+    run folders and stores mean the same on every node (Ray workers start elsewhere; with
+    SLURM it is the submission folder already). Needs that folder on a shared filesystem."""
+    from hydra.core.hydra_config import HydraConfig
+
+    if HydraConfig.initialized():
+        os.chdir(HydraConfig.get().runtime.cwd)
