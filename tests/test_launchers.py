@@ -47,8 +47,9 @@ TINY = ["study=quick", "ppo.iterations=2", "ppo.frames_per_iteration=128", "ppo.
         "ppo.minibatch_size=64", "eval.n_sims=2", "eval.steps=20", "eval.scenarios=[Intersection]"]
 
 
-def _sweep_twice(root: Path, launcher: list[str], granted: int) -> None:
-    """In this process (the jobs run where the launcher puts them), from the folder root."""
+def _sweep_twice(root: Path, launcher: list[str], granted: int, twice: bool = True) -> None:
+    """In this process (the jobs run where the launcher puts them), from the folder root;
+    twice=False stops after the first sweep (isolation and resume only)."""
     uri = f"sqlite:///{root}/mlflow.db"
     common = [*TINY, f"tracking.tracking_uri={uri}"]
     dirs = {m: root / compose_config([*common, f"obs={p}"]).run_dir
@@ -64,6 +65,8 @@ def _sweep_twice(root: Path, launcher: list[str], granted: int) -> None:
     assert (dirs["M4"] / "evaluated.txt").exists() and (dirs["M4"] / "final.pt").exists()
     assert (dirs["M4"] / "mlflow_run_id").read_text() == m4_run
     final_m4 = (dirs["M4"] / "final.pt").read_bytes()
+    if not twice:
+        return
 
     (dirs["M0"] / "checkpoint.pt").unlink()
     assert main(["sweep", *common, "models=[M0,M4]", *launcher]) == 0
@@ -126,3 +129,29 @@ def test_ray_sweep_on_a_local_cluster(tmp_path, monkeypatch, ray_cluster):
     monkeypatch.chdir(root)
     _sweep_twice(root, ["hydra/launcher=ray", f"hydra.launcher.ray.init.address={ray_cluster}",
                         "hydra.launcher.ray.remote.num_cpus=3"], 3)
+
+
+@pytest.fixture
+def slurm_cluster(monkeypatch):
+    """A one-node SLURM cluster started by scripts/slurm_local.sh (needs root and slurm-wlm)."""
+    if os.geteuid() != 0 or not shutil.which("slurmctld", path="/usr/sbin:/usr/bin"):
+        pytest.skip("needs root and Debian's slurm-wlm (apt-get install slurm-wlm munge)")
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
+    script = Path(__file__).resolve().parents[1] / "scripts" / "slurm_local.sh"
+    folder = tempfile.mkdtemp(prefix="slurm", dir="/tmp")
+    env = dict(os.environ, SLURM_LOCAL_DIR=folder)
+    started = subprocess.run([str(script), "start"], env=env, capture_output=True, text=True)
+    try:
+        assert started.returncode == 0, started.stdout + started.stderr
+        monkeypatch.setenv("SLURM_CONF", f"{folder}/slurm.conf")
+        yield
+    finally:
+        subprocess.run([str(script), "stop"], env=env)
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.mark.slow
+def test_slurm_sweep_on_a_local_cluster(tmp_path, monkeypatch, slurm_cluster):
+    monkeypatch.chdir(tmp_path)
+    _sweep_twice(tmp_path, ["hydra/launcher=slurm", "hydra.launcher.cpus_per_task=1",
+                            "hydra.launcher.mem_gb=1", "hydra.launcher.timeout_min=10"], 1, twice=False)
