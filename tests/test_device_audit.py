@@ -1,0 +1,87 @@
+"""The GPU path without a GPU: every tensor that sigmarl's own code creates while the
+environment steps, the networks act and the loss trains must be created on the configured
+device. A tensor made without `device=` lands on the CPU; on CPU that goes unnoticed, with
+device=cuda it is a device mismatch or a host round trip each step. The audit records every
+torch factory call made directly from sigmarl's source during reset, steps, collection, GAE and
+the PPO update, and fails on any that does not name a device (or derive it from a tensor).
+
+Construction is left out on purpose: map tables are built with numpy on the CPU and moved to
+the device once (`RouteBank`); the test of that is the last one here."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+from torch.overrides import TorchFunctionMode
+
+import sigmarl
+from sigmarl.compose import compose_config, map_config
+from sigmarl.env.route_bank import RouteBank
+from sigmarl.maps import load_map
+from sigmarl.training.loop import build
+from sigmarl.training.mappo import collect, update
+
+SRC = str(Path(sigmarl.__file__).resolve().parent)
+FACTORIES = {torch.zeros, torch.ones, torch.empty, torch.full, torch.arange, torch.linspace,
+             torch.tensor, torch.as_tensor, torch.rand, torch.randn, torch.randint, torch.eye,
+             torch.randperm, torch.from_numpy, torch.logspace, torch.empty_strided}
+
+
+class FactoryAudit(TorchFunctionMode):
+    """Records (file:line, function) of factory calls from sigmarl without a device."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.found: set[tuple[str, str]] = set()
+        self.dtypes: set[tuple[str, torch.dtype]] = set()
+
+    def __torch_function__(self, func, types, args=(), kwargs=None):
+        kwargs = kwargs or {}
+        out = func(*args, **kwargs)
+        frame = sys._getframe(1)
+        if frame.f_code.co_filename.startswith(SRC):
+            where = f"{Path(frame.f_code.co_filename).relative_to(SRC)}:{frame.f_lineno}"
+            derived = func in (torch.tensor, torch.as_tensor) and args and isinstance(args[0], torch.Tensor)
+            if func in FACTORIES and kwargs.get("device") is None and not derived:
+                self.found.add((where, func.__name__))
+            if isinstance(out, torch.Tensor) and out.dtype == torch.float64:
+                self.dtypes.add((where, func.__name__ if hasattr(func, "__name__") else str(func)))
+        return out
+
+
+@pytest.fixture(scope="module")
+def parts():
+    cfg = compose_config(["tracking.enabled=false", "ppo=smoke", "ppo.num_envs=4",
+                          "ppo.frames_per_iteration=256", "ppo.minibatch_size=64",
+                          "network.hidden=[16,16]"])
+    built = build(cfg, torch.device(cfg.device))
+    yield cfg, built
+    built.close()
+
+
+def test_no_tensor_of_a_training_iteration_skips_the_device(parts):
+    cfg, p = parts
+    batches = iter(p.collector)
+    audit = FactoryAudit()
+    with audit:
+        data = collect(batches)  # env resets (partial and full), steps, the sampler
+        with torch.no_grad():
+            p.gae(data)
+        update(data, p.loss, p.optimiser, cfg.ppo)
+    assert not sorted(audit.found), "factory calls without device=: " + str(sorted(audit.found))
+    assert not sorted(audit.dtypes), "float64 tensors: " + str(sorted(audit.dtypes))
+
+
+@pytest.mark.parametrize("name", ["cpm", "roundabout"])
+def test_route_tables_end_on_the_configured_device(name):
+    """Built on the CPU, every table must move: on the `meta` device (no data, any device
+    mismatch shows) nothing may be left on the CPU, and floats are float32."""
+    road_map = load_map(map_config(name))
+    bank = RouteBank(road_map, torch.device("meta"))
+    tensors = {k: v for k, v in vars(bank).items() if isinstance(v, torch.Tensor)}
+    assert len(tensors) >= 10
+    assert {k: v.device.type for k, v in tensors.items() if v.device.type != "meta"} == {}
+    assert {k: v.dtype for k, v in tensors.items() if v.is_floating_point() and v.dtype != torch.float32} == {}
