@@ -1,12 +1,12 @@
 """The GPU path without a GPU: every tensor that sigmarl's own code creates while the
-environment steps, the networks act and the loss trains must be created on the configured
-device. A tensor made without `device=` lands on the CPU; on CPU that goes unnoticed, with
-device=cuda it is a device mismatch or a host round trip each step. The audit records every
-torch factory call made directly from sigmarl's source during reset, steps, collection, GAE and
-the PPO update, and fails on any that does not name a device (or derive it from a tensor).
+environment steps, the networks act, the loss trains and an evaluation rolls out must be made
+on the configured device. A tensor made without `device=` lands on the CPU: on CPU that goes
+unnoticed, with device=cuda it is a device mismatch or a host round trip every step. The audit
+(a TorchFunctionMode) records every torch factory call made directly from sigmarl's source and
+fails on any that names no device (and on any float64 result).
 
-Construction is left out on purpose: map tables are built with numpy on the CPU and moved to
-the device once (`RouteBank`); the test of that is the last one here."""
+Building the route tables is left out on purpose: they are computed with numpy on the CPU and
+moved to the device once (`RouteBank.__init__`); the meta-device test checks that move."""
 
 from __future__ import annotations
 
@@ -20,14 +20,26 @@ from torch.overrides import TorchFunctionMode
 import sigmarl
 from sigmarl.compose import compose_config, map_config
 from sigmarl.env.route_bank import RouteBank
+from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.maps import load_map
 from sigmarl.training.loop import build
 from sigmarl.training.mappo import collect, update
 
 SRC = str(Path(sigmarl.__file__).resolve().parent)
+ROUTE_BANK = f"{SRC}/env/route_bank.py"
 FACTORIES = {torch.zeros, torch.ones, torch.empty, torch.full, torch.arange, torch.linspace,
              torch.tensor, torch.as_tensor, torch.rand, torch.randn, torch.randint, torch.eye,
              torch.randperm, torch.from_numpy, torch.logspace, torch.empty_strided}
+
+
+def _building_tables(frame) -> bool:
+    """Inside RouteBank's constructor or the map code (CPU by design, checked below)."""
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if name.startswith(f"{SRC}/maps/") or (name == ROUTE_BANK and frame.f_code.co_name == "__init__"):
+            return True
+        frame = frame.f_back
+    return False
 
 
 class FactoryAudit(TorchFunctionMode):
@@ -42,7 +54,7 @@ class FactoryAudit(TorchFunctionMode):
         kwargs = kwargs or {}
         out = func(*args, **kwargs)
         frame = sys._getframe(1)
-        if frame.f_code.co_filename.startswith(SRC):
+        if frame.f_code.co_filename.startswith(SRC) and not _building_tables(frame):
             where = f"{Path(frame.f_code.co_filename).relative_to(SRC)}:{frame.f_lineno}"
             derived = func in (torch.tensor, torch.as_tensor) and args and isinstance(args[0], torch.Tensor)
             if func in FACTORIES and kwargs.get("device") is None and not derived:
@@ -85,3 +97,15 @@ def test_route_tables_end_on_the_configured_device(name):
     assert len(tensors) >= 10
     assert {k: v.device.type for k, v in tensors.items() if v.device.type != "meta"} == {}
     assert {k: v.dtype for k, v in tensors.items() if v.is_floating_point() and v.dtype != torch.float32} == {}
+
+
+def test_no_tensor_of_an_evaluation_rollout_skips_the_device(parts):
+    """Test-mode rollouts (respawns, metrics on the fly); the scenario's map tables are built
+    inside, so the construction-only modules are left to the test above."""
+    cfg, p = parts
+    audit = FactoryAudit()
+    with audit:
+        evaluate_policy(p.actor, cfg, "Roundabout", n_sims=2, steps=30, n_agents=cfg.env.n_agents,
+                        progress=False)
+    assert not sorted(audit.found), "factory calls without device=: " + str(sorted(audit.found))
+    assert not sorted(audit.dtypes), "float64 tensors: " + str(sorted(audit.dtypes))
