@@ -11,7 +11,8 @@ TORCH = "torch==2.13.0"
 
 def _install(session: nox.Session) -> None:
     session.install(TORCH)
-    session.install("-e", ".[dev]")
+    # the cluster tests' system packages (postgresql, slurm-wlm, munge) come from .ci/run
+    session.install("-e", ".[dev,slurm,ray,postgres]")
 
 
 @nox.session(python="3.11")
