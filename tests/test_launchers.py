@@ -21,6 +21,7 @@ from mlflow import MlflowClient
 from sigmarl.cli import main
 from sigmarl.compose import compose_config
 from sigmarl.resources import granted_threads, job_threads
+from sigmarl.sweep import run_job
 
 
 def test_slurm_grant_wins_over_everything():
@@ -39,6 +40,20 @@ def test_ray_grant_then_launcher_config_then_cores_per_job():
 
 def test_outside_a_hydra_job_the_configured_threads_stay():
     assert job_threads(7) == 7
+
+
+def test_a_sweep_job_works_in_the_sweep_folder(tmp_path, monkeypatch):
+    """Wherever the worker process stands (Ray workers, reused joblib workers), the job's
+    relative run folder is taken in the folder the sweep started from."""
+    sweep, worker = tmp_path / "sweep", tmp_path / "worker"
+    sweep.mkdir()
+    worker.mkdir()
+    monkeypatch.chdir(worker)
+    monkeypatch.setenv("SIGMARL_SWEEP_DIR", str(sweep))
+    # 400 agents cannot be placed on the intersection: the job fails at once, leaving failed.txt
+    cfg = compose_config(["ppo=smoke", "env.n_agents=400", "tracking.enabled=false", "run_dir=runs/job"])
+    assert run_job(cfg) == "failed"
+    assert (sweep / "runs" / "job" / "failed.txt").exists() and not (worker / "runs").exists()
 
 
 # Two models, a tiny budget. M0 is given a corrupt resume checkpoint (its job fails), M4 is

@@ -8,6 +8,8 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+SWEEP_DIR = "SIGMARL_SWEEP_DIR"  # set by Hydra around each job of `sigmarl sweep`
+
 
 def granted_threads(launcher: Mapping[str, Any], environ: Mapping[str, str] = os.environ,
                     ray_cpus: float | None = None, cores: int | None = None) -> int:
@@ -30,7 +32,7 @@ def job_threads(configured: int) -> int:
     granted_threads from the job's launcher config and environment."""
     from hydra.core.hydra_config import HydraConfig
 
-    if not HydraConfig.initialized():
+    if SWEEP_DIR not in os.environ or not HydraConfig.initialized():  # not a sweep job
         return configured
     hydra = HydraConfig.get()
     if user_set("threads", hydra.overrides.task):
@@ -55,11 +57,17 @@ def _ray_cpus() -> float | None:
     return ray.get_runtime_context().get_assigned_resources().get("CPU")
 
 
-def enter_sweep_folder() -> None:
-    """Work in the folder the sweep was started from (Hydra's runtime.cwd), so that relative
-    run folders and stores mean the same on every node (Ray workers start elsewhere; with
-    SLURM it is the submission folder already). Needs that folder on a shared filesystem."""
-    from hydra.core.hydra_config import HydraConfig
+def sweep_folder_override() -> str:
+    """The override that hands the sweep's folder to its jobs: Hydra sets the variable around
+    each job wherever it runs. (Hydra's own runtime.cwd is composed in the job's process for
+    joblib and submitit, so it names the worker's folder, not the sweep's.)"""
+    folder = os.getcwd().replace("\\", "\\\\").replace("'", "\\'")
+    return f"++hydra.job.env_set.{SWEEP_DIR}='{folder}'"
 
-    if HydraConfig.initialized():
-        os.chdir(HydraConfig.get().runtime.cwd)
+
+def enter_sweep_folder() -> None:
+    """Inside a sweep job, work in the folder the sweep was started from, so that relative run
+    folders and stores mean the same on every node (Ray workers and reused joblib workers
+    start elsewhere). Needs that folder on a shared filesystem."""
+    if folder := os.environ.get(SWEEP_DIR):
+        os.chdir(folder)

@@ -26,7 +26,7 @@ from omegaconf import DictConfig, open_dict
 
 from sigmarl.ablation import MODELS, check_eval
 from sigmarl.errors import SigmarlError
-from sigmarl.resources import enter_sweep_folder, job_threads
+from sigmarl.resources import enter_sweep_folder, job_threads, sweep_folder_override
 
 FAILED_FILE = "failed.txt"
 DONE_FILE = "evaluated.txt"
@@ -180,7 +180,7 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
     register_configs()
     _prepare_store(overrides)
     argv = sys.argv
-    sys.argv = ["sigmarl-sweep", "--multirun", *overrides]
+    sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override()]
     try:
         main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
         main()
