@@ -9,24 +9,27 @@ import torch
 
 from sigmarl.cli import main
 from sigmarl.errors import SigmarlError
+from sigmarl.resources import granted_threads
 from sigmarl.sweep import _fixed, _jobs, _prepare_store, summarise, sweep_overrides
 
 ALL_PRESETS = ("obs=full,no_ego_view,no_vertices,no_distance_to_agents,no_distance_to_boundaries,"
                "no_distance_to_center_line")
 
 
-def launcher(out: list[str]) -> tuple[int, int]:
-    """(hydra.launcher.n_jobs, threads) the sweep chose."""
+def launcher(out: list[str], cores: int) -> tuple[int, int]:
+    """(hydra.launcher.n_jobs the sweep chose, threads each joblib job takes on `cores`)."""
     get = {o.split("=", 1)[0]: o.split("=", 1)[1] for o in out}
-    return int(get["hydra.launcher.n_jobs"]), int(get["threads"])
+    assert "threads" not in get  # set in each job from its grant
+    n_jobs = int(get["hydra.launcher.n_jobs"])
+    return n_jobs, granted_threads({"n_jobs": n_jobs}, {}, cores=cores)
 
 
 def test_list_values_are_plain_values_not_sweeps():
     user = ["eval.scenarios=[CPM,Roundabout]", "network.hidden=[128,128]"]
     out = sweep_overrides(user, cores=2)
     assert out[:2] == user and ALL_PRESETS in out
-    assert launcher(out) == (2, 1)  # 6 jobs (the models), not 6 x 2 x 2
-    assert _fixed(out) == [*user, "seed=0", "threads=1"]
+    assert launcher(out, 2) == (2, 1)  # 6 jobs (the models), not 6 x 2 x 2
+    assert _fixed(out) == [*user, "seed=0"]
     jobs = _jobs(out)
     assert len(jobs) == 6 and all(len(j) == 1 and j[0].startswith("obs=") for j in jobs)
 
@@ -42,7 +45,7 @@ def test_list_values_are_plain_values_not_sweeps():
 def test_seed_sweeps_count_their_jobs(seeds, values):
     out = sweep_overrides([seeds], cores=64)
     n = 6 * len(values)
-    assert launcher(out) == (n, 64 // n)
+    assert launcher(out, 64) == (n, 64 // n)
     jobs = [dict(o.split("=", 1) for o in job) for job in _jobs(out)]
     seeds_of_jobs = [j.get("seed") for j in jobs]
     if len(values) == 1:  # a single seed is a plain value, the same for every job
@@ -55,14 +58,14 @@ def test_seed_sweeps_count_their_jobs(seeds, values):
 def test_models_shorthand_list_scalar_and_range_of_seeds():
     out = sweep_overrides(["models=[M0,M4]", "seeds=range(3)"], cores=16)
     assert "obs=full,no_distance_to_boundaries" in out and "seed=0,1,2" in out
-    assert launcher(out) == (6, 2)
+    assert launcher(out, 16) == (6, 2)
     out = sweep_overrides(["models=M1"], cores=4)
-    assert "obs=no_ego_view" in out and launcher(out) == (1, 4)
+    assert "obs=no_ego_view" in out and launcher(out, 4) == (1, 4)
 
 
 def test_quoted_strings_keep_their_commas():
     out = sweep_overrides(["tracking.experiment='a,b'", "models=[M0]"], cores=4)
-    assert "tracking.experiment='a,b'" in _fixed(out) and launcher(out) == (1, 4)
+    assert "tracking.experiment='a,b'" in _fixed(out) and launcher(out, 4) == (1, 4)
     # A sweep over quoted values: each value keeps its quotes, so Hydra reads it back whole.
     out = sweep_overrides(['tracking.experiment="x y",z', "models=[M0]"], cores=4)
     assert _jobs(out) == [['tracking.experiment="x y"'], ["tracking.experiment=z"]]
@@ -70,7 +73,7 @@ def test_quoted_strings_keep_their_commas():
 
 def test_every_swept_key_multiplies_the_jobs():
     out = sweep_overrides(["ppo.lr=1e-4,2e-4", "models=[M0,M1,M2]"], cores=64)
-    assert launcher(out)[0] == 6 and len(_jobs(out)) == 6
+    assert launcher(out, 64)[0] == 6 and len(_jobs(out)) == 6
 
 
 @pytest.mark.parametrize(("user", "message"), [
