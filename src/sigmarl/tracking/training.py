@@ -62,12 +62,14 @@ class Tracker:
             return cls.disabled()
         client = connect(cfg)
         try:
+            if run_id is not None and not _has_run(client, run_id):
+                # The run folder came from another machine or store (a committed study, a
+                # cluster job's folder): it is the primary record, so this store gets a new run
+                # for it, which the caller fills from metrics.csv.
+                print(f"sigmarl: MLflow run {run_id} is not in the store {client.tracking_uri!r}; "
+                      "recording the run folder as a new run there", file=sys.stderr)
+                run_id = None
             if run_id is not None:
-                if not _has_run(client, run_id):
-                    raise SigmarlError(
-                        f"MLflow run {run_id} (the one to resume) is not in the store "
-                        f"{client.tracking_uri!r}; resume with the tracking_uri it was started with"
-                    )
                 if client.get_run(run_id).info.lifecycle_stage != "active":
                     raise SigmarlError(f"MLflow run {run_id} was deleted; cannot resume into it")
                 if reopen:

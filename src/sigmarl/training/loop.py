@@ -363,8 +363,11 @@ def _complete(cfg: DictConfig, run_dir: Path, state: dict[str, Any]) -> TrainRes
     if not (run_dir / ckpt.FINAL_FILE).exists():  # the last checkpoint holds the final weights
         ckpt.save_atomic(ckpt.policy_only(state), run_dir / ckpt.FINAL_FILE)
     run_id = state.get("mlflow_run_id")
-    if cfg.tracking.enabled and run_id:
+    if cfg.tracking.enabled:
         tracker = Tracker.open(cfg, run_id, reopen=False)
+        if tracker.run_id != run_id:  # a store that had no record of it (see Tracker.open)
+            run_id = tracker.run_id
+            (run_dir / RUN_ID_FILE).write_text(f"{run_id}\n")
         if tracker.status() != "FINISHED":
             print(f"{run_dir}: completing the MLflow record of the finished training")
             _complete_record(tracker, run_dir, iterations)
