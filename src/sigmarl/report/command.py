@@ -144,23 +144,8 @@ def _mlflow_checkpoint(client, experiment: str) -> Path:
 
 
 def _animations(path: Path, cfg: DictConfig, out_dir: Path, steps: int, scenarios: list[str]) -> dict[str, Path]:
-    """One GIF per scenario of checkpoint `path` driving (deterministic actions, eval seed)."""
-    from omegaconf import OmegaConf
-    from torchrl.envs.utils import ExplorationType, set_exploration_type
+    """One GIF per scenario of checkpoint `path` driving (evaluation's work; the report only
+    collects the files)."""
+    from sigmarl.evaluation.animation import animate_checkpoint
 
-    from sigmarl.env import make_env
-    from sigmarl.env.render import render_rollout
-    from sigmarl.evaluation.rollout import scenario_map_config
-    from sigmarl.training.loop import load_policy
-
-    out = {}
-    for scenario in scenarios:
-        n_agents = SCENARIOS[scenario][1]
-        actor, state = load_policy(path, n_agents=n_agents)
-        train_cfg = OmegaConf.create(state["config"])
-        env = make_env(train_cfg, num_envs=1, n_agents=n_agents, mode="test", max_steps=steps,
-                       map_cfg=scenario_map_config(scenario), seed=cfg.eval.seed)
-        with set_exploration_type(ExplorationType.DETERMINISTIC):
-            gif = render_rollout(env, actor, steps=steps, path=out_dir / "animations" / f"M0_{scenario}.gif")
-        out[f"animation_{scenario}"] = gif
-    return out
+    return animate_checkpoint(path, scenarios, steps, int(cfg.eval.seed), out_dir)
