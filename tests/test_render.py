@@ -110,13 +110,11 @@ def test_separate_vehicles_have_no_red(env):
     assert _red_near(render_state(env), pos) == 0
 
 
-def test_bare_scenario_needs_a_map(env):
+def test_a_scenario_renders_its_own_map_or_a_given_one(env, kit):
     sc = scenario_of(env)
-    if getattr(sc, "road_map", None) is None:
-        with pytest.raises(SigmarlError, match="road_map"):
-            render_state(sc)
-    road_map = env._constructor_kwargs["road_map"]
-    assert render_state(sc, road_map=road_map).axes[0].get_title().startswith(road_map.name)
+    assert render_state(sc).axes[0].get_title().startswith(sc.road_map.name)
+    other = kit.straight_road_map()
+    assert render_state(sc, road_map=other).axes[0].get_title().startswith(other.name)
 
 
 def test_test_mode_collision_is_drawn_where_it_happened():

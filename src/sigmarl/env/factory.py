@@ -9,7 +9,7 @@ from torchrl.envs import EnvBase
 from torchrl.envs.libs.vmas import VmasEnv
 
 from sigmarl.env.observation import ObsFlags
-from sigmarl.env.scenario import TrafficScenario
+from sigmarl.env.scenario import ScenarioSettings, TrafficScenario
 from sigmarl.errors import SigmarlError
 from sigmarl.maps import RoadMap, load_map
 
@@ -137,14 +137,16 @@ def make_env(
         continuous_actions=True,
         max_steps=max_steps,
         seed=seed,
-        road_map=road_map,
-        flags=flags,
-        n_agents=n_agents,
-        mode=mode,
-        scenario_seed=seed,  # VmasEnv keeps `seed` for itself
-        noise=float(cfg.obs.noise),
-        ref_point_stride=int(cfg.obs.ref_point_stride),
-        spawn_start_m=float(env_cfg.spawn_start_m),
-        spawn_end_fraction=float(env_cfg.spawn_end_fraction),
-        spawn_margin_m=float(env_cfg.spawn_margin_m),
+        settings=ScenarioSettings(
+            road_map=road_map,
+            flags=flags,
+            n_agents=n_agents,
+            mode=mode,
+            noise=float(cfg.obs.noise),
+            ref_point_stride=int(cfg.obs.ref_point_stride),
+            spawn_start_m=float(env_cfg.spawn_start_m),
+            spawn_end_fraction=float(env_cfg.spawn_end_fraction),
+            spawn_margin_m=float(env_cfg.spawn_margin_m),
+            seed=seed,  # VmasEnv keeps its own `seed` argument for itself
+        ),
     )

@@ -67,8 +67,7 @@ def _unwrap(obj) -> tuple[TrafficScenario, object | None, RoadMap | None]:
     scenario = getattr(vmas_env, "scenario", None)
     if not isinstance(scenario, TrafficScenario):
         raise SigmarlError(f"cannot render {type(obj).__name__}: expected a TrafficScenario env")
-    road_map = getattr(base, "_constructor_kwargs", {}).get("road_map")
-    return scenario, vmas_env, road_map
+    return scenario, vmas_env, scenario.road_map
 
 
 def scenario_of(env) -> TrafficScenario:

@@ -42,6 +42,22 @@ SIDE_WINDOW = (-1, 4)  # observed boundary points: 1 behind .. 3 ahead of the cl
 _REACH_MARGIN = 1e-3  # m
 
 
+@dataclass(frozen=True)
+class ScenarioSettings:
+    """Everything the scenario is built from (`make_env` fills it from the config)."""
+
+    road_map: RoadMap
+    flags: ObsFlags
+    n_agents: int
+    mode: str  # train | test
+    noise: float  # total width of the zero-mean uniform observation noise
+    ref_point_stride: int  # center points between reference points
+    spawn_start_m: float
+    spawn_end_fraction: float
+    spawn_margin_m: float
+    seed: int  # the spawn and noise generators' seed
+
+
 @dataclass
 class EgoGeometry:
     """What observation, reward and collisions read of each agent's own pose, [E, A, ...]
@@ -78,24 +94,27 @@ class TrafficScenario(BaseScenario):
     """Connected automated vehicles following routes on a road map (spec §2-§6)."""
 
     def make_world(self, batch_dim: int, device: torch.device, **kwargs) -> World:
-        road_map: RoadMap = kwargs["road_map"]
-        self.flags: ObsFlags = kwargs.get("flags", ObsFlags())
-        self.n_agents = int(kwargs.get("n_agents", 4))
-        self.train = kwargs.get("mode", "train") == "train"
-        self.noise = float(kwargs.get("noise", 0.02))
+        # VMAS passes the scenario's settings as keyword arguments: one typed object, built by
+        # `make_env` from the config, so no default is stated twice.
+        settings: ScenarioSettings = kwargs["settings"]
+        self.road_map = settings.road_map  # what renderers draw
+        self.flags = settings.flags
+        self.n_agents = settings.n_agents
+        self.train = settings.mode == "train"
+        self.noise = settings.noise
         self.n_ref = self.flags.n_ref_points
-        self.ref_stride = int(kwargs.get("ref_point_stride", 2))
-        self.bank = RouteBank(road_map, device)
+        self.ref_stride = settings.ref_point_stride
+        self.bank = RouteBank(settings.road_map, device)
         self.spawn_lo, self.spawn_hi = spawn_index_range(
             self.bank,
             train=self.train,
-            start_m=float(kwargs.get("spawn_start_m", 0.5)),
-            end_fraction=float(kwargs.get("spawn_end_fraction", 0.5)),
-            margin_m=float(kwargs.get("spawn_margin_m", 0.25)),
+            start_m=settings.spawn_start_m,
+            end_fraction=settings.spawn_end_fraction,
+            margin_m=settings.spawn_margin_m,
         )
         self.rng = torch.Generator(device=device)
         self.noise_rng = torch.Generator(device=device)
-        self.seed(int(kwargs.get("scenario_seed", 0)))
+        self.seed(settings.seed)
 
         world = World(batch_dim, device, dt=DT, substeps=1, drag=0.0)
         for i in range(self.n_agents):
