@@ -20,6 +20,7 @@ from sigmarl import crash
 from sigmarl.ablation import SCENARIOS, check_eval, model_label, obs_strategies
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
+from sigmarl.paths import ensure_writable
 from sigmarl.tracking import connect, experiment_id, records
 
 ROWS_FILE = "evaluation_rows.csv"
@@ -141,7 +142,7 @@ def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scen
         state = load(path, cfg.device)
     else:
         if rows_file is not None:
-            _probe(rows_file.parent)
+            ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use --out <file>")
         rows, state = evaluate_checkpoint(path, cfg.eval, scenarios, device=cfg.device, progress=progress)
         if rows_file is not None:
             _save_rows(rows, rows_file, identity)
@@ -162,13 +163,3 @@ def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scen
     params["checkpoint_iteration"] = str(state.get("iteration"))
     run_id = records.log_evaluation(client, exp_id, rows, tags, params)
     return rows, run_id
-
-
-def _probe(folder: Path) -> None:
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=folder):
-            pass
-    except OSError as e:
-        raise SigmarlError(f"cannot write the evaluation rows to {folder} ({e.strerror}); "
-                           "use --out <file>") from e

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -41,17 +41,10 @@ def make_report(
     rows = records.load_evaluation_rows(client, experiment)
     curves = records.load_training_curves(client, experiment) if figures else None
     out_dir = out_dir or Path("reports") / experiment
-    with _staged(out_dir) as staging:
-        report = build_report(rows, models, out_dir=staging, trim=trim, compare_paper=compare_paper,
-                              latex=latex, curves=curves if curves is not None and len(curves) else None,
-                              ci=ci, figures=figures)
-        known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
-        if figures:
-            _add_maps(report, staging, known)
-        if animation_steps > 0:
-            report.paths.update(_animations(_mlflow_checkpoint(client, experiment), cfg, staging,
-                                            animation_steps, known))
-        _publish(report, staging, out_dir)
+    options = dict(models=models, trim=trim, compare_paper=compare_paper, latex=latex, ci=ci,
+                   figures=figures, animation_steps=animation_steps)
+    report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
+                    lambda: _mlflow_checkpoint(client, experiment), **options)
     if cfg.tracking.enabled:
         records.log_report(client, experiment, report.composite, report.paths.values(), {
             "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
@@ -81,27 +74,42 @@ def make_report_from_folder(
     out_dir = out_dir or Path("reports") / root.resolve().name
     curves = results.curves if figures and len(results.curves) else None
     client = connect(cfg) if cfg.tracking.enabled else None  # checked before any work
-    with _staged(out_dir) as staging:
-        report = build_report(results.rows, models, out_dir=staging, trim=trim,
-                              compare_paper=compare_paper, latex=latex, curves=curves, ci=ci,
-                              figures=figures, extra_notes=results.notes)
-        known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
-        if figures:
-            _add_maps(report, staging, known)
-        if animation_steps > 0:
-            from sigmarl.evaluation.protocol import checkpoint_name
-
-            path = checkpoint_of(results.runs, "M0", checkpoint_name(cfg.eval.checkpoint))
-            if path is None:
-                from sigmarl.errors import SigmarlError
-
-                raise SigmarlError(f"animations need M0's {checkpoint_name(cfg.eval.checkpoint)} in {root}; none found")
-            report.paths.update(_animations(path, cfg, staging, animation_steps, known))
-        _publish(report, staging, out_dir)
+    options = dict(models=models, trim=trim, compare_paper=compare_paper, latex=latex, ci=ci,
+                   figures=figures, animation_steps=animation_steps)
+    report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
+                    extra_notes=results.notes, **options)
     if client is not None:
         records.log_report(client, cfg.tracking.experiment, report.composite, report.paths.values(),
                            {"source": str(root.resolve())})
     return report
+
+
+def _build(rows, curves, out_dir: Path, cfg: DictConfig, m0_checkpoint: Callable[[], Path], *,
+           models, trim, compare_paper, latex, ci, figures, animation_steps, extra_notes=()) -> Report:
+    """Tables, figures, the scenarios' maps and M0's animations, drawn into a staging folder and
+    moved into out_dir only when all are complete."""
+    with _staged(out_dir) as staging:
+        report = build_report(rows, models, out_dir=staging, trim=trim, compare_paper=compare_paper,
+                              latex=latex, curves=curves, ci=ci, figures=figures,
+                              extra_notes=list(extra_notes))
+        known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
+        if figures:
+            _add_maps(report, staging, known)
+        if animation_steps > 0:
+            report.paths.update(_animations(m0_checkpoint(), cfg, staging, animation_steps, known))
+        _publish(report, staging, out_dir)
+    return report
+
+
+def _folder_checkpoint(results, root: Path, cfg: DictConfig) -> Path:
+    """M0's evaluated checkpoint (its first seed) in a results folder."""
+    from sigmarl.errors import SigmarlError
+    from sigmarl.evaluation.protocol import checkpoint_name
+
+    path = checkpoint_of(results.runs, "M0", checkpoint_name(cfg.eval.checkpoint))
+    if path is None:
+        raise SigmarlError(f"animations need M0's {checkpoint_name(cfg.eval.checkpoint)} in {root}; none found")
+    return path
 
 
 @contextmanager

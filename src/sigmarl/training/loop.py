@@ -9,7 +9,6 @@ that iteration k+1 needs, and a resumed run ends with the same weights as an uni
 from __future__ import annotations
 
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +21,7 @@ from tqdm import tqdm
 
 from sigmarl import crash
 from sigmarl.errors import SigmarlError
+from sigmarl.paths import ensure_writable
 from sigmarl.tracking import Tracker, flatten
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
@@ -146,17 +146,6 @@ def _resume_point(cfg: DictConfig, run_dir: Path, device: torch.device) -> dict[
     return state
 
 
-def _writable_folder(run_dir: Path) -> None:
-    """Create the run folder and check that files can be written there, before any work."""
-    try:
-        run_dir.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=run_dir):
-            pass
-    except OSError as e:
-        raise SigmarlError(f"run folder {run_dir} is not writable ({e.strerror}); "
-                           "choose another run_dir=...") from e
-
-
 def _env_dims(env: Any) -> dict[str, Any]:
     obs_shape = env.full_observation_spec[OBS].shape
     box = env.full_action_spec[ACTION].space
@@ -210,7 +199,7 @@ def train(cfg: DictConfig) -> TrainResult:
     device = _device(cfg.device)
     run_dir = Path(cfg.run_dir)
     state = _resume_point(cfg, run_dir, device)
-    _writable_folder(run_dir)
+    ensure_writable(run_dir, "choose another run_dir=...")
     if state and state["iteration"] >= cfg.ppo.iterations:
         return _complete(cfg, run_dir, state)
 
