@@ -79,3 +79,29 @@ def test_report_on_unreachable_store_exits_2(tmp_path, capsys):
     assert rc == 2
     err = capsys.readouterr().err
     assert "MLflow store" in err and "/proc/sigmarl" in err
+
+
+@pytest.mark.slow
+def test_an_interrupted_job_is_unfinished_not_failed(tmp_path):
+    # Ctrl-C (or SIGTERM, raised the same way) in the middle of training: the job leaves its
+    # resume point and no failed.txt, so the sweep's summary says "unfinished", not "FAILED".
+    import os
+    import signal
+    import threading
+    import time
+
+    from sigmarl.compose import compose_config
+
+    run = tmp_path / "job"
+    cfg = compose_config(["ppo=smoke", "ppo.iterations=500", "tracking.enabled=false", f"run_dir={run}"])
+
+    def interrupt() -> None:
+        deadline = time.time() + 120
+        while not (run / "best.pt").exists() and time.time() < deadline:
+            time.sleep(0.05)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    threading.Thread(target=interrupt, daemon=True).start()
+    with pytest.raises(KeyboardInterrupt):
+        run_job(cfg)
+    assert (run / "checkpoint.pt").exists() and not (run / FAILED_FILE).exists()

@@ -70,7 +70,10 @@ def run_job(cfg: DictConfig) -> str:
                                        rows_file=run_dir / ROWS_FILE)
         (run_dir / DONE_FILE).write_text(f"{eval_run or ''}\n")
         return "done"
-    except (Exception, KeyboardInterrupt) as e:
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: interrupted, not failed; a re-run resumes
+        print(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", file=sys.stderr)
+        raise
+    except Exception as e:
         message = str(e) if isinstance(e, SigmarlError) else traceback.format_exc()
         try:
             run_dir.mkdir(parents=True, exist_ok=True)
@@ -78,8 +81,6 @@ def run_job(cfg: DictConfig) -> str:
         except OSError:  # an unwritable run folder is itself the error reported
             pass
         print(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", file=sys.stderr)
-        if isinstance(e, KeyboardInterrupt):
-            raise
         return "failed"
 
 
