@@ -166,7 +166,10 @@ def build_report(
             rows[rows["model"].isin(models)], models, scenarios, out_dir / "distributions.png"
         )
         if curves is not None and len(curves):
+            from sigmarl.report.paper import paper_curves
+
             paths["training_curves"] = plot_training_curves(
-                curves, out_dir / "training_curves.png", models
+                curves, out_dir / "training_curves.png", models,
+                paper=paper_curves() if compare_paper else None,
             )
     return Report(markdown, table, summary, composite, better, aggregates, statistics, paths, notes)

@@ -54,11 +54,13 @@ def plot_distributions(
     return path
 
 
-def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | None = None) -> Path:
+def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | None = None,
+                         paper: pd.DataFrame | None = None) -> Path:
     """Mean episode reward per training iteration, one line per model (paper Fig. 5).
 
     `curves` has columns model, iteration, reward and optionally seed; with several seeds
-    the line is their mean and the band their range.
+    the line is their mean and the band their range. `paper` (same columns) adds the paper's
+    curve of each model as a dashed line in the model's colour.
     """
     missing = {"model", "iteration", "reward"} - set(curves.columns)
     if missing:
@@ -77,6 +79,9 @@ def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | N
         else:
             per_seed = c.groupby("iteration")["reward"].mean().to_frame()
         line = ax.plot(per_seed.index, per_seed.mean(axis=1), label=model, lw=1.2)[0]
+        if paper is not None and (p := paper[paper["model"] == model]).size:
+            ax.plot(p["iteration"], p["reward"], ls="--", lw=0.9, color=line.get_color(),
+                    label=f"{model} (paper)")
         if per_seed.shape[1] > 1:
             ax.fill_between(
                 per_seed.index,

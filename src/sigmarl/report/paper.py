@@ -7,6 +7,7 @@ from importlib import resources
 import pandas as pd
 
 PAPER_TABLE = "paper_table_1.csv"
+PAPER_CURVES = "paper_training_curves.csv"  # the paper's Fig. 5, one seed per model
 
 
 def paper_table() -> pd.DataFrame:
@@ -24,3 +25,11 @@ def paper_values(models: list[str] | None = None) -> pd.DataFrame:
     """Only the numbers, index (scenario, metric), columns `models` (NaN for unknown names)."""
     table = paper_table().drop(columns="unit").astype(float)
     return table if models is None else table.reindex(columns=models)
+
+
+def paper_curves() -> pd.DataFrame:
+    """The paper's training curves (Fig. 5): columns model, iteration, reward."""
+    source = resources.files("sigmarl").joinpath("data").joinpath(PAPER_CURVES)
+    with source.open("r", encoding="utf-8") as f:
+        wide = pd.read_csv(f, comment="#")
+    return wide.melt(id_vars="iteration", var_name="model", value_name="reward")[["model", "iteration", "reward"]]
