@@ -4,6 +4,7 @@ regenerate with tests/data/make_results_fixture.py)."""
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -13,7 +14,9 @@ from mlflow import MlflowClient
 
 from sigmarl.ablation import METRIC_COLUMNS, PAPER_SCENARIOS
 from sigmarl.cli import main
+from sigmarl.compose import compose_config
 from sigmarl.report.folder import read_results
+from sigmarl.tracking import records
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 TABLE_FILES = ["table.md", "table.csv", "table.tex", "summary.csv", "composite_scores.csv",
@@ -80,6 +83,21 @@ def test_unevaluated_runs_are_named_and_left_out(tmp_path, capsys):
     assert report(tmp_path, "out", "--no-figures", source=source) == 0
     out = capsys.readouterr().out
     assert "M4/seed1 has no evaluation_rows.csv" in out
+    summary = pd.read_csv(tmp_path / "out" / "summary.csv")
+    assert set(summary.loc[summary["model"] == "M4", "n_seeds"]) == {1}
+
+
+def test_rows_of_another_protocol_or_older_rules_are_left_out(tmp_path, capsys):
+    # evaluation.json names the protocol the rows were measured under; rows measured under
+    # older environment rules (env.params.RULES_REVISION) must not mix into the table.
+    source = tmp_path / "results"
+    shutil.copytree(FIXTURE, source)
+    current = records.eval_key(compose_config(["tracking.enabled=false"]).eval)
+    (source / "M4" / "seed1" / "evaluation.json").write_text(json.dumps({"eval_key": "0123456789ab"}))
+    (source / "M4" / "seed0" / "evaluation.json").write_text(json.dumps({"eval_key": current}))
+    assert report(tmp_path, "out", "--no-figures", source=source) == 0
+    out = capsys.readouterr().out
+    assert "M4/seed1: evaluated under another protocol or older rules (key 0123456789ab" in out
     summary = pd.read_csv(tmp_path / "out" / "summary.csv")
     assert set(summary.loc[summary["model"] == "M4", "n_seeds"]) == {1}
 

@@ -76,6 +76,28 @@ def segments_box_overlap(
     return (in_x & in_y & across).any(-1)
 
 
+def crossings_odd(start: torch.Tensor, end: torch.Tensor, table: torch.Tensor) -> torch.Tensor:
+    """[..., C] True where the segment start -> end ([..., 2] each) crosses the polylines of a
+    `segment_table` [..., 5, C, S] an odd number of times.
+
+    With `start` inside a region bounded by the polylines, an odd count puts `end` outside it,
+    whatever the boundary's shape (steps where a corridor narrows, backtracking vertices).
+    Each segment counts its start point but not its end, so a crossing through a shared
+    vertex counts once.
+    """
+    sx = start[..., 0, None, None]
+    sy = start[..., 1, None, None]
+    ex = end[..., 0, None, None] - sx
+    ey = end[..., 1, None, None] - sy
+    ax, ay = table[..., 0, :, :] - sx, table[..., 1, :, :] - sy  # [..., C, S]
+    dx, dy = table[..., 2, :, :], table[..., 3, :, :]
+    denom = ex * dy - ey * dx  # zero for parallel or zero-length segments: never a crossing
+    u = (ax * dy - ay * dx) / denom  # along start -> end
+    t = (ax * ey - ay * ex) / denom  # along the boundary segment
+    hit = (denom != 0) & (u >= 0) & (u <= 1) & (t >= 0) & (t < 1)
+    return hit.sum(-1) % 2 == 1
+
+
 def segment_table(lines: torch.Tensor) -> torch.Tensor:
     """What `nearest_on_segments` needs of polylines [..., L, W, 2], precomputed once per map:
     [..., 5, L, W - 1] = segment start x, start y, dx, dy and 1 / |d|^2 (0 for zero-length

@@ -17,6 +17,7 @@ from vmas.simulator.core import Agent, Box, World
 from vmas.simulator.scenario import BaseScenario
 
 from sigmarl.env.collision import (
+    crossings_odd,
     nearest_on_segments,
     pairwise_box_overlap,
     segment_table,
@@ -138,7 +139,6 @@ class TrafficScenario(BaseScenario):
         self._ref_slots = -LINE_WINDOW[0] + ar(1, self.n_ref + 1) * self.ref_stride
         if int(self._ref_slots[-1]) >= LINE_WINDOW[1] - LINE_WINDOW[0]:
             raise ValueError("obs.n_ref_points x obs.ref_point_stride must be at most 6")
-        self._side_sign = torch.tensor([1.0, -1.0], device=device)
         self._eye_big = torch.eye(self.n_agents, device=device) * 1e9
         self._alloc(batch_dim, device)
         self.per_agent_infos = True
@@ -275,27 +275,24 @@ class TrafficScenario(BaseScenario):
         line) are recomputed on the wider window; one that fails that too is farther from its
         center line than its corridor allows, so it has left its corridor (`route_bank.reaches`).
         """
-        dist, hit = self._boundary_contacts(probe, pos, heading, self._bound_table[rows])
+        dist, hit = self._boundary_contacts(probe, pos, heading, center, self._bound_table[rows])
         exact = _proven(probe, center, dist, self.bank.reach)
         if not bool(exact.all()):
             far = (~exact).nonzero(as_tuple=True)
             p, c = probe[far], center[far]
-            d, h = self._boundary_contacts(p, pos[far], heading[far], self._wide_table[rows[far]])
+            d, h = self._boundary_contacts(p, pos[far], heading[far], c, self._wide_table[rows[far]])
             h = h | ~_proven(p, c, d, self.bank.wide_reach).unsqueeze(-1)
             dist, hit = dist.index_put(far, d), hit.index_put(far, h)
         return dist, hit
 
-    def _boundary_contacts(self, probe, pos, heading, table) -> tuple[torch.Tensor, torch.Tensor]:
+    def _boundary_contacts(self, probe, pos, heading, center, table) -> tuple[torch.Tensor, torch.Tensor]:
         """Distances [..., 2, 5] and contact [..., 2] against boundary segments [..., 5, 2, S]."""
-        dist, seg = nearest_on_segments(probe, table)
-        # The box touches a boundary, or its center is already beyond one (left boundary:
-        # center to its right is inside; right boundary: to its left). The side is only
-        # trusted near the boundary: a far segment's line can put the center on either side
-        # on a curve, and a vehicle (<= 0.04 m a step) cannot get far beyond unnoticed.
-        a = table[..., :4, :, :].gather(-1, seg[..., 0][..., None, :, None].expand(*seg.shape[:-2], 4, 2, 1))
-        ax, ay, dx, dy = a.squeeze(-1).unbind(-2)  # [..., 2] each: the segment nearest the center
-        cross = dx * (pos[..., 1, None] - ay) - dy * (pos[..., 0, None] - ax)
-        outside = (cross * self._side_sign > 0) & (dist[..., 0] < 0.1)
+        dist, _ = nearest_on_segments(probe, table)
+        # The box touches a boundary, or its center is already beyond one: the way from the
+        # center-line point (inside the corridor) to the center crosses that boundary an odd
+        # number of times. (A side test against the nearest segment got this wrong where a
+        # corridor narrows in a step and at backtracking vertices: false contacts on CPM.)
+        outside = crossings_odd(center, pos, table)
         touch = segments_box_overlap(table, pos, heading, LENGTH, WIDTH)
         return dist, touch | outside
 

@@ -14,6 +14,7 @@ notes; without metrics.csv it just has no training curve.
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +25,7 @@ from sigmarl.ablation import MODELS
 from sigmarl.errors import SigmarlError
 
 ROWS_FILE = "evaluation_rows.csv"
+ROWS_META = "evaluation.json"  # what the rows were measured under (evaluation.protocol)
 METRICS_FILE = "metrics.csv"
 CONFIG_FILE = "config.yaml"
 REWARD = "episode_reward_mean"
@@ -108,14 +110,28 @@ def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | No
     return curve, None
 
 
-def read_results(root: Path) -> FolderResults:
-    """All evaluation rows and training curves of a results folder."""
+def _protocol_key(run: RunFolder) -> str | None:
+    """The evaluation protocol key its rows were measured under (evaluation.json), if known."""
+    try:
+        return json.loads((run.path / ROWS_META).read_text()).get("eval_key")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def read_results(root: Path, eval_key: str | None = None) -> FolderResults:
+    """All evaluation rows and training curves of a results folder; with `eval_key`, rows
+    measured under another protocol (or older environment rules) are left out, with a note."""
     runs = run_folders(root)
     frames, curves, notes = [], [], []
     seen: dict[tuple[str, int], Path] = {}
     for run in runs:
         if not (run.path / ROWS_FILE).is_file():
             notes.append(f"{run.path} has no {ROWS_FILE} (not evaluated yet): left out")
+            continue
+        measured = _protocol_key(run)
+        if eval_key and measured and measured != eval_key:
+            notes.append(f"{run.path}: evaluated under another protocol or older rules (key {measured}, "
+                         f"now {eval_key}): left out; `sigmarl sweep runs_root=...` re-evaluates it")
             continue
         rows = _rows_of(run)
         model = str(rows["model"].iloc[0])

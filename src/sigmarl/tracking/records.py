@@ -20,6 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from sigmarl import crash
 from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS
+from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 from sigmarl.tracking.store import experiment_id
 
@@ -32,6 +33,7 @@ def eval_key(eval_cfg: DictConfig) -> str:
     # A scenario's name does not say which map it ran on (Table I's names moved from the
     # procedural maps to the paper's own): the key holds each scenario's map and agents.
     protocol["maps"] = {s: list(SCENARIOS[s]) for s in protocol["scenarios"] if s in SCENARIOS}
+    protocol["rules"] = RULES_REVISION  # rows measured under older environment rules differ
     blob = json.dumps(protocol, sort_keys=True)
     return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
