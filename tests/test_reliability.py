@@ -460,3 +460,25 @@ def test_a_run_opens_no_socket(tmp_path: Path) -> None:
         cwd=tmp_path, env=_env(), capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert log.read_text() == ""
+
+
+def test_an_interruption_that_a_library_turns_into_its_own_error_still_counts():
+    # Measured in a sweep: a SIGTERM that landed inside torchrl's MultiAgentMLP came out as
+    # tensordict's RuntimeError, and the job was marked failed instead of interrupted.
+    import torch
+    from torchrl.modules import MultiAgentMLP
+
+    from sigmarl.errors import Terminated, was_interrupted
+
+    net = MultiAgentMLP(n_agent_inputs=4, n_agent_outputs=2, n_agents=3, centralised=False,
+                        share_params=True, depth=1, num_cells=8)
+
+    def signal_arrives(module, args):
+        raise Terminated()
+
+    net._empty_net.register_forward_pre_hook(signal_arrives)
+    with pytest.raises(RuntimeError) as caught:
+        net(torch.zeros(5, 3, 4))
+    assert not isinstance(caught.value, KeyboardInterrupt)  # the library replaced it
+    assert was_interrupted(caught.value)
+    assert not was_interrupted(RuntimeError("a real failure"))

@@ -9,10 +9,11 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from sigmarl.errors import SigmarlError, Terminated
+from sigmarl.errors import SigmarlError, Terminated, note_termination, was_interrupted
 
 
 def _terminate(signum, frame) -> None:
+    note_termination()
     raise Terminated()
 
 
@@ -185,8 +186,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SigmarlError as e:
         print(f"sigmarl: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as e:
-        terminated = isinstance(e, Terminated)
+    except BaseException as e:
+        if not was_interrupted(e):
+            raise
+        terminated = isinstance(e, Terminated) or not isinstance(e, KeyboardInterrupt)
         print(f"sigmarl: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
         return 128 + (signal.SIGTERM if terminated else signal.SIGINT)
     return rc if isinstance(rc, int) else 0

@@ -25,7 +25,7 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, open_dict
 
 from sigmarl.ablation import MODELS, check_eval
-from sigmarl.errors import SigmarlError
+from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.resources import enter_sweep_folder, job_threads, sweep_folder_override
 
 FAILED_FILE = "failed.txt"
@@ -70,10 +70,14 @@ def run_job(cfg: DictConfig) -> str:
                                        rows_file=run_dir / ROWS_FILE)
         (run_dir / DONE_FILE).write_text(f"{eval_run or ''}\n")
         return "done"
-    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: interrupted, not failed; a re-run resumes
-        print(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", file=sys.stderr)
-        raise
-    except Exception as e:
+    except BaseException as e:
+        if was_interrupted(e):  # Ctrl-C or SIGTERM: interrupted, not failed; a re-run resumes
+            print(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", file=sys.stderr)
+            if isinstance(e, KeyboardInterrupt):
+                raise
+            raise Terminated() from e
+        if not isinstance(e, Exception):
+            raise
         message = str(e) if isinstance(e, SigmarlError) else traceback.format_exc()
         try:
             run_dir.mkdir(parents=True, exist_ok=True)

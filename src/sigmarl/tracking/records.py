@@ -21,7 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 from sigmarl import crash
 from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS
 from sigmarl.env.params import RULES_REVISION
-from sigmarl.errors import SigmarlError
+from sigmarl.errors import SigmarlError, was_interrupted
 from sigmarl.tracking.store import experiment_id
 
 ROWS_ARTIFACT = "evaluation_rows.csv"
@@ -91,7 +91,7 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
 def _end(client, rid: str, error: BaseException) -> None:
     """KILLED for an interruption (Ctrl-C, SIGTERM), FAILED otherwise; never raises."""
     try:
-        client.set_terminated(rid, "KILLED" if isinstance(error, KeyboardInterrupt) else "FAILED")
+        client.set_terminated(rid, "KILLED" if was_interrupted(error) else "FAILED")
     except Exception:
         pass
 

@@ -12,7 +12,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 import torch
@@ -20,7 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from sigmarl import crash
-from sigmarl.errors import SigmarlError
+from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.paths import ensure_writable
 from sigmarl.tracking import Tracker, flatten
 from sigmarl.training import checkpoint as ckpt
@@ -212,8 +212,7 @@ def train(cfg: DictConfig) -> TrainResult:
         if state:
             _load_state(parts, state, run_dir / ckpt.RESUME_FILE)
     except BaseException as e:
-        tracker.finish("KILLED" if isinstance(e, KeyboardInterrupt) else "FAILED")
-        raise
+        _finish_and_raise(tracker, e)
     actor, critic, optimiser = parts.actor, parts.critic, parts.optimiser
 
     def snapshot(iteration: int, reward: float | None) -> dict[str, Any]:
@@ -296,12 +295,8 @@ def train(cfg: DictConfig) -> TrainResult:
             bar.update(1)
         if stop == ppo.iterations:
             _complete_record(tracker, run_dir, stop)
-    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM through the CLI's handler
-        tracker.finish("KILLED")
-        raise
-    except BaseException:
-        tracker.finish("FAILED")
-        raise
+    except BaseException as e:  # Ctrl-C, or SIGTERM through the CLI's handler, or a failure
+        _finish_and_raise(tracker, e)
     finally:
         bar.close()
         parts.close()
@@ -322,6 +317,18 @@ def _load_state(parts: Parts, state: dict[str, Any], path: Path) -> None:
     except (ValueError, KeyError, RuntimeError) as e:
         raise SigmarlError(f"checkpoint {path}: the optimiser state does not fit ({e})") from e
     ckpt.set_rng_state(state["rng"])
+
+
+def _finish_and_raise(tracker: Tracker, error: BaseException) -> NoReturn:
+    """End the run KILLED (interrupted: resumable) or FAILED, and re-raise; an interruption
+    that a library turned into its own error is raised as the interruption it was."""
+    if not was_interrupted(error):
+        tracker.finish("FAILED")
+        raise error
+    tracker.finish("KILLED")
+    if isinstance(error, KeyboardInterrupt):
+        raise error
+    raise Terminated() from error
 
 
 def _open_tracker(cfg: DictConfig, run_dir: Path, state: dict[str, Any] | None) -> Tracker:
