@@ -10,6 +10,7 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from sigmarl.ablation import SCENARIOS
 from sigmarl.config import Config, MapConfig, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.paths import conf_dir
@@ -46,10 +47,18 @@ def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list
 
 def map_config(name: str) -> DictConfig:
     """conf/map/<name>.yaml on the MapConfig schema, without Hydra's global state, so that
-    code running inside a Hydra job (a sweep's evaluation) can read it."""
+    code running inside a Hydra job (a sweep's evaluation) can read it. The one reader of
+    a map config file outside Hydra's composition."""
     path = conf_dir() / "map" / f"{name}.yaml"
     if not path.is_file():
         raise SigmarlError(f"no map config {path}")
     values = OmegaConf.load(path)
     values.pop("defaults", None)
     return OmegaConf.merge(OmegaConf.structured(MapConfig), values)
+
+
+def scenario_map_config(scenario: str) -> DictConfig:
+    """The map config of a study scenario (sigmarl.ablation.SCENARIOS: conf/map/<name>.yaml)."""
+    if scenario not in SCENARIOS:
+        raise SigmarlError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
+    return map_config(SCENARIOS[scenario][0])

@@ -9,9 +9,9 @@ from omegaconf import OmegaConf
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.ablation import SCENARIOS
+from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.env.render import render_rollout
-from sigmarl.evaluation.rollout import scenario_map_config
 
 
 def animate_checkpoint(path: Path, scenarios: list[str], steps: int, seed: int, out_dir: Path,

@@ -136,9 +136,13 @@ def _publish(report: Report, staging: Path, out_dir: Path) -> None:
 
 
 def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
+    """The maps the scenarios ran on, as the evaluation builds them."""
+    from sigmarl.compose import scenario_map_config
+    from sigmarl.maps import load_map
     from sigmarl.maps.plot import save_scenario_maps
 
-    report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png", scenarios)
+    maps = [(s, load_map(scenario_map_config(s)), SCENARIOS[s][1]) for s in scenarios]
+    report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png", maps)
 
 
 def _mlflow_checkpoint(client, experiment: str) -> Path:
