@@ -17,6 +17,7 @@ from tqdm.auto import tqdm
 
 from sigmarl.ablation import SCENARIOS
 from sigmarl.compose import scenario_map_config
+from sigmarl.config import Config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
 
@@ -42,7 +43,7 @@ def as_td_policy(policy) -> Policy:
 @torch.no_grad()
 def evaluate_policy(
     policy,
-    cfg,
+    cfg: Config,
     scenario: str,
     n_sims: int = 32,
     steps: int = 1200,
