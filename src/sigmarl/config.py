@@ -168,11 +168,15 @@ def config_from_dict(values: Mapping[str, Any], what: str = "config") -> Config:
     """A saved config (a checkpoint's `config`, a run folder's config.yaml) on the schema.
 
     Keys the schema lacks (settings removed from sigmarl since) are dropped and settings it
-    added since take their defaults, so a file from an older sigmarl still loads; a value of
-    the wrong type is a SigmarlError naming `what`.
+    added since take their defaults, so a file from an older sigmarl still loads (one from
+    before `model` and `runs_root` existed: the label derived from its flags, the folders
+    ""); a value of the wrong type is a SigmarlError naming `what`.
     """
     try:
         merged = OmegaConf.merge(OmegaConf.structured(Config), _known(values, Config))
+        for key in ("model", "runs_root", "run_dir"):  # mandatory (MISSING) in the schema
+            if OmegaConf.is_missing(merged, key):
+                merged[key] = model_label(merged.obs) if key == "model" else ""
         return as_config(merged)
     except OmegaConfBaseException as e:
         raise SigmarlError(f"{what} does not fit sigmarl's config schema: {str(e).splitlines()[0]}") from e

@@ -14,7 +14,6 @@ import tempfile
 from pathlib import Path
 
 import pandas as pd
-from omegaconf import OmegaConf
 
 from sigmarl import crash
 from sigmarl.ablation import SCENARIOS, check_eval, model_label, obs_strategies
@@ -55,6 +54,7 @@ def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = Non
 def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] | None = None,
                         device: str = "cpu", progress: bool = True) -> tuple[pd.DataFrame, dict]:
     """Per-simulation rows of a trained policy on each scenario, and the checkpoint's state."""
+    from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import load_policy
 
     scenarios = check_eval(eval_cfg, scenarios or None)
@@ -63,12 +63,11 @@ def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] |
     for scenario in scenarios:
         n_agents = SCENARIOS[scenario][1]
         actor, state = load_policy(path, n_agents=n_agents, device=device)
-        train_cfg = OmegaConf.create(state["config"])
+        train_cfg = ckpt.config_of(state, path)
         rows = evaluate_policy(actor, train_cfg, scenario, n_sims=eval_cfg.n_sims, steps=eval_cfg.steps,
                                seed=eval_cfg.seed, n_agents=n_agents, device=device, progress=progress)
         frames.append(rows)
         crash.point(f"eval:scenario:{scenario}")
-    train_cfg = OmegaConf.create(state["config"])
     rows = pd.concat(frames, ignore_index=True)
     rows.insert(0, "model", model_label(train_cfg.obs))
     rows.insert(1, "obs", obs_strategies(train_cfg.obs))
@@ -134,13 +133,13 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
     before logging, and rows saved by an earlier attempt under the same protocol and
     checkpoint are logged without evaluating again.
     """
+    from sigmarl.training import checkpoint as ckpt
+
     client = connect(cfg) if cfg.tracking.enabled else None
     identity = _identity(path, cfg) if rows_file is not None else {}
     rows = _saved_rows(rows_file, identity) if rows_file is not None else None
     if rows is not None:
-        from sigmarl.training.checkpoint import load
-
-        state = load(path, cfg.device)
+        state = ckpt.load(path, cfg.device)
     else:
         if rows_file is not None:
             ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use --out <file>")
@@ -151,7 +150,7 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
         return rows, None
     crash.point("eval:rows")
     exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
-    train_cfg = OmegaConf.create(state["config"])
+    train_cfg = ckpt.config_of(state, path)
     tags = {
         "model": str(rows["model"].iloc[0]),
         "obs": obs_strategies(train_cfg.obs),

@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from omegaconf import OmegaConf
 from tqdm import tqdm
 
 from sigmarl import crash
@@ -373,8 +372,8 @@ def load_policy(
     """
     state = ckpt.load(Path(path), device)
     dims = state["dims"]
+    net = ckpt.config_of(state, Path(path)).network
     try:
-        net = OmegaConf.create(state["config"]).network
         actor = make_actor(net, dims["obs_dim"], n_agents or dims["n_agents"], dims["action_low"],
                            dims["action_high"], device)
     except Exception as e:  # a config that builds no network
