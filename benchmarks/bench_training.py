@@ -23,6 +23,7 @@ import math
 import os
 import statistics
 import time
+from dataclasses import replace
 
 import torch
 import torch.nn.functional as F
@@ -128,8 +129,7 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
     parts = build(cfg, torch.device("cpu"))
     env = parts.env
     steps = ppo.frames_per_iteration // ppo.num_envs
-    one = cfg.ppo.copy()
-    one.epochs = 1
+    one = replace(cfg.ppo, epochs=1)
     scale = ppo.epochs / epochs
     for g in parts.optimiser.param_groups:
         g["lr"] = learning_rate(ppo, 0)
@@ -186,12 +186,10 @@ def measure_precision(cfg, epochs: int) -> dict[str, float]:
     data = collect(iter(parts.collector))
     with torch.no_grad():
         parts.gae(data)
-    one = cfg.ppo.copy()
-    one.epochs = 1
+    one = replace(cfg.ppo, epochs=1)
     losses = {}
     for precision in ("fp32", "bf16"):
-        ppo = cfg.ppo.copy()
-        ppo.precision = precision
+        ppo = replace(cfg.ppo, precision=precision)
         losses[precision] = LeanPPOLoss(parts.actor, parts.critic, ppo)
         update(data, losses[precision], parts.optimiser, one)  # warm-up
     cpu = dict.fromkeys(losses, 0.0)

@@ -14,12 +14,12 @@ from pathlib import Path
 
 import pandas as pd
 import torch
-from omegaconf import OmegaConf
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.ablation import SCENARIOS
+from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
-from sigmarl.evaluation.rollout import scenario_map_config
+from sigmarl.training.checkpoint import config_of
 from sigmarl.training.loop import load_policy
 
 
@@ -34,12 +34,13 @@ def curvature(bank, route: torch.Tensor, index: torch.Tensor, span: int = 3) -> 
 
 
 @torch.no_grad()
-def contacts(checkpoint: Path, scenario: str, n_sims: int, steps: int, seed: int, **overrides) -> pd.DataFrame:
+def contacts(checkpoint: Path, scenario: str, n_sims: int, steps: int, seed: int,
+             noise: float | None = None) -> pd.DataFrame:
     n_agents = SCENARIOS[scenario][1]
     actor, state = load_policy(checkpoint, n_agents=n_agents)
-    cfg = OmegaConf.create(state["config"])
-    for key, value in overrides.items():
-        OmegaConf.update(cfg, key, value)
+    cfg = config_of(state, checkpoint)
+    if noise is not None:
+        cfg.obs.noise = noise
     env = make_env(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", max_steps=steps,
                    map_cfg=scenario_map_config(scenario), seed=seed)
     sc = env._env.scenario
@@ -112,8 +113,7 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=None, help="CSV of the contacts")
     a = p.parse_args()
     torch.set_num_threads(1)
-    over = {} if a.noise is None else {"obs.noise": a.noise}
-    ev = contacts(a.checkpoint, a.scenario, a.sims, a.steps, a.seed, **over)
+    ev = contacts(a.checkpoint, a.scenario, a.sims, a.steps, a.seed, a.noise)
     print(summary(ev, a.sims, a.steps, SCENARIOS[a.scenario][1]))
     if a.out:
         ev.to_csv(a.out, index=False)

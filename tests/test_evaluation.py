@@ -6,10 +6,10 @@ import pytest
 import torch
 
 from sigmarl.ablation import SCENARIOS
-from sigmarl.compose import compose_config
+from sigmarl.compose import compose_config, scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
-from sigmarl.evaluation.rollout import evaluate_policy, scenario_map_config
+from sigmarl.evaluation.rollout import evaluate_policy
 
 
 def still(obs):

@@ -77,12 +77,11 @@ def test_training_evaluation_and_tags_agree_on_the_label(tmp_path) -> None:
 def test_a_checkpoint_from_an_older_sigmarl_resumes() -> None:
     # A run started before a knob existed (or while one that is gone still did) must resume:
     # only settings that differ from what that run did count.
-    from omegaconf import OmegaConf
-
+    from sigmarl.config import as_dict
     from sigmarl.training.loop import config_changes
 
     cfg = compose_config(["ppo=smoke"])
-    saved = OmegaConf.to_container(cfg, resolve=True)
+    saved = as_dict(cfg)  # what a checkpoint holds
     saved["env"]["mode"] = "train"  # a knob since removed
     del saved["ppo"]["entropy_coef"]  # a knob added since, at its default
     assert config_changes(saved, cfg) == []

@@ -4,6 +4,7 @@ gradients, on a real rollout batch of the training environment."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -51,8 +52,7 @@ def _grads(parts, total) -> list[torch.Tensor]:
 @pytest.mark.parametrize("normalize_advantage", [False, True])
 def test_lean_loss_equals_clip_ppo_loss(setup, normalize_advantage) -> None:
     cfg, parts, data = setup
-    ppo = cfg.ppo.copy()
-    ppo.normalize_advantage = normalize_advantage
+    ppo = replace(cfg.ppo, normalize_advantage=normalize_advantage)
     lean = LeanPPOLoss(parts.actor, parts.critic, ppo)
     ref = TorchrlPPOLoss(parts.actor, parts.critic, ppo)
     idx = torch.randperm(data.numel(), generator=torch.Generator().manual_seed(1))[:64]
@@ -120,8 +120,7 @@ def test_update_runs_either_loss_and_moves_the_weights(setup) -> None:
     from sigmarl.training.mappo import update
 
     cfg, parts, data = setup
-    ppo = cfg.ppo.copy()
-    ppo.epochs, ppo.minibatch_size = 1, 64
+    ppo = replace(cfg.ppo, epochs=1, minibatch_size=64)
     for loss in (LeanPPOLoss(parts.actor, parts.critic, ppo), TorchrlPPOLoss(parts.actor, parts.critic, ppo)):
         before = [p.detach().clone() for p in parts.actor.parameters()]
         terms = update(data, loss, parts.optimiser, ppo)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 import torch
 
@@ -40,8 +42,7 @@ def setup():
 
 
 def _loss(cfg, parts, precision: str) -> LeanPPOLoss:
-    ppo = cfg.ppo.copy()
-    ppo.precision = precision
+    ppo = replace(cfg.ppo, precision=precision)
     return LeanPPOLoss(parts.actor, parts.critic, ppo)
 
 
@@ -89,7 +90,6 @@ def test_precision_choice():
 
 def test_bf16_with_torchrl_loss_is_refused(setup):
     cfg, parts, _ = setup
-    ppo = cfg.ppo.copy()
-    ppo.loss, ppo.precision = "torchrl", "bf16"
+    ppo = replace(cfg.ppo, loss="torchrl", precision="bf16")
     with pytest.raises(SigmarlError, match="needs ppo.loss=lean"):
         make_loss(parts.actor, parts.critic, ppo)

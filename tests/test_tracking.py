@@ -8,6 +8,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from sigmarl.compose import compose_config
+from sigmarl.config import as_dict
 from sigmarl.errors import SigmarlError
 from sigmarl.tracking import Tracker, artifact_location, flatten, git_commit
 
@@ -19,7 +20,7 @@ def test_flatten_dotted_keys_and_lists_as_one_value() -> None:
 
 def test_every_config_value_becomes_one_param() -> None:
     cfg = compose_config(["seed=3"])
-    params = flatten(OmegaConf.to_container(cfg, resolve=True))
+    params = flatten(as_dict(cfg))
     assert params["seed"] == "3" and params["ppo.epochs"] == "60"
     assert params["ppo.minibatch_size"] == "512" and params["obs.preset"] == "full"
     assert params["model"] == "M0" and params["run_dir"].endswith("M0/seed3")

@@ -12,13 +12,13 @@ from types import SimpleNamespace
 
 import pytest
 import torch
-from omegaconf import OmegaConf
 from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.cli import main
 from sigmarl.compose import compose_config
+from sigmarl.config import PPOConfig
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import load_policy, train
 from sigmarl.training.loop import learning_rate
@@ -236,7 +236,7 @@ def test_impossible_budget_is_refused(capsys) -> None:
 
 
 def test_learning_rate_decays_linearly_to_the_final_value() -> None:
-    ppo = OmegaConf.create({"lr": 2e-4, "lr_final": 1e-5, "iterations": 250})
+    ppo = PPOConfig(lr=2e-4, lr_final=1e-5, iterations=250)
     assert learning_rate(ppo, 0) == pytest.approx(2e-4)
     assert learning_rate(ppo, 249) == pytest.approx(1e-5)
     assert learning_rate(ppo, 83) == pytest.approx(2e-4 - 1.9e-4 * 83 / 249)
@@ -288,7 +288,7 @@ def test_gae_bootstraps_the_batch_end_and_not_a_termination(terminated_last: boo
     gamma, lmbda = 0.99, 0.9
     critic = TensorDictModule(lambda o: o.clone(), [("agents", "observation")],
                               [("agents", "state_value")])
-    gae = make_gae(critic, OmegaConf.create({"gamma": gamma, "lmbda": lmbda}))
+    gae = make_gae(critic, PPOConfig(gamma=gamma, lmbda=lmbda))
     data = mark_batch_end(_batch(terminated_last))
     assert data["next", "done"][0, 2] and data["next", "agents", "done"].shape == (1, 3, 1, 1)
     gae(data)

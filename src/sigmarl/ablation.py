@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sigmarl.errors import SigmarlError
+
+if TYPE_CHECKING:  # sigmarl.config imports this module
+    from sigmarl.config import EvalConfig, ObsConfig
 
 # Model name -> observation preset (conf/obs/<preset>.yaml).
 MODELS: dict[str, str] = {
@@ -54,15 +57,22 @@ METRIC_COLUMNS = ["CR_AA", "CR_AL", "CR_total", "CD", "AS"]  # CD in real centim
 ROW_KEYS = ["model", "obs", "seed", "scenario", "simulation"]
 
 
-def obs_strategies(obs: Mapping[str, Any]) -> str:
+def _on(obs: ObsConfig | Mapping[str, Any], flag: str) -> bool:
+    return bool(obs[flag] if isinstance(obs, Mapping) else getattr(obs, flag))
+
+
+def obs_strategies(obs: ObsConfig | Mapping[str, Any]) -> str:
     """The strategies switched on, in the paper's order: "E,V,DA,DB,DC" for M0."""
-    return ",".join(short for flag, short in OBS_FLAGS.items() if bool(obs[flag]))
+    return ",".join(short for flag, short in OBS_FLAGS.items() if _on(obs, flag))
 
 
-def model_label(obs: Mapping[str, Any]) -> str:
+def model_label(obs: ObsConfig | Mapping[str, Any]) -> str:
     """M0 with all five strategies on, M1..M5 with exactly the paper's one left out, and
-    "custom-<6 hex>" (a hash of the strategies that are on) for any other combination."""
-    off = [flag for flag in OBS_FLAGS if not bool(obs[flag])]
+    "custom-<6 hex>" (a hash of the strategies that are on) for any other combination.
+
+    `obs` is an ObsConfig, or the flags as a mapping (the `obs` node that the config's
+    `${sigmarl_model:${obs}}` resolver receives while Hydra composes)."""
+    off = [flag for flag in OBS_FLAGS if not _on(obs, flag)]
     if not off:
         return "M0"
     if len(off) == 1:
@@ -70,15 +80,15 @@ def model_label(obs: Mapping[str, Any]) -> str:
     return "custom-" + hashlib.sha1(obs_strategies(obs).encode()).hexdigest()[:6]
 
 
-def check_eval(eval_cfg: Mapping[str, Any], scenarios: Sequence[str] | None = None) -> list[str]:
+def check_eval(eval_cfg: EvalConfig, scenarios: Sequence[str] | None = None) -> list[str]:
     """The scenarios to evaluate on, after checking the evaluation settings: one clear
     SigmarlError for a bad value, so a sweep can refuse before it trains anything."""
     for key in ("n_sims", "steps"):
-        if int(eval_cfg[key]) <= 0:
-            raise SigmarlError(f"eval.{key} must be positive, got {eval_cfg[key]}")
-    if str(eval_cfg["checkpoint"]) not in ("best", "final"):
-        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {eval_cfg['checkpoint']!r}")
-    names = [str(s) for s in (scenarios if scenarios is not None else eval_cfg["scenarios"])]
+        if int(getattr(eval_cfg, key)) <= 0:
+            raise SigmarlError(f"eval.{key} must be positive, got {getattr(eval_cfg, key)}")
+    if str(eval_cfg.checkpoint) not in ("best", "final"):
+        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {eval_cfg.checkpoint!r}")
+    names = [str(s) for s in (scenarios if scenarios is not None else eval_cfg.scenarios)]
     if not names:
         raise SigmarlError(f"eval.scenarios is empty; choose from {', '.join(SCENARIOS)}")
     unknown = [s for s in names if s not in SCENARIOS]

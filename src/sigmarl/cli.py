@@ -76,15 +76,12 @@ def cmd_train(args: argparse.Namespace) -> None:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
-    from omegaconf import open_dict
-
     from sigmarl.compose import compose_config
     from sigmarl.evaluation.protocol import evaluate_and_log, resolve_checkpoint, rows_file_for
 
     cfg = compose_config(args.overrides)
     if args.scenario:
-        with open_dict(cfg):
-            cfg.eval.scenarios = list(args.scenario)
+        cfg.eval.scenarios = list(args.scenario)
     path = resolve_checkpoint(args.target, cfg)
     rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
     rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)

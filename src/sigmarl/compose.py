@@ -1,4 +1,8 @@
-"""Compose the Hydra config for a command from the user's overrides."""
+"""Compose the Hydra config for a command from the user's overrides, and read map configs.
+
+The boundary between Hydra and the rest of sigmarl: what leaves here is typed (`Config`,
+`MapConfig`), never an OmegaConf `DictConfig`.
+"""
 
 from __future__ import annotations
 
@@ -10,12 +14,13 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from sigmarl.config import Config, MapConfig, register_configs
+from sigmarl.ablation import SCENARIOS
+from sigmarl.config import Config, MapConfig, as_config, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.paths import conf_dir
 
 
-def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:
+def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> Config:
     """The resolved config; a bad override raises SigmarlError with Hydra's message (which names the key)."""
     register_configs()
     # After a Hydra app (the sweep) has run in this process its global state lingers.
@@ -31,7 +36,7 @@ def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -
     unknown = _unknown_keys(cfg, OmegaConf.structured(Config))
     if unknown:
         raise SigmarlError(f"unknown config key(s): {', '.join(unknown)}")
-    return cfg
+    return as_config(cfg)
 
 
 def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list[str]:
@@ -44,12 +49,20 @@ def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list
     return out
 
 
-def map_config(name: str) -> DictConfig:
+def map_config(name: str) -> MapConfig:
     """conf/map/<name>.yaml on the MapConfig schema, without Hydra's global state, so that
-    code running inside a Hydra job (a sweep's evaluation) can read it."""
+    code running inside a Hydra job (a sweep's evaluation) can read it. The one reader of
+    a map config file outside Hydra's composition."""
     path = conf_dir() / "map" / f"{name}.yaml"
     if not path.is_file():
         raise SigmarlError(f"no map config {path}")
     values = OmegaConf.load(path)
     values.pop("defaults", None)
-    return OmegaConf.merge(OmegaConf.structured(MapConfig), values)
+    return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(MapConfig), values))
+
+
+def scenario_map_config(scenario: str) -> MapConfig:
+    """The map config of a study scenario (sigmarl.ablation.SCENARIOS: conf/map/<name>.yaml)."""
+    if scenario not in SCENARIOS:
+        raise SigmarlError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
+    return map_config(SCENARIOS[scenario][0])

@@ -1,18 +1,30 @@
-"""Structured configs: the schema Hydra validates every override against.
+"""Structured configs: the schema Hydra validates every override against, and the typed
+objects every function receives.
 
 Each dataclass is one config group (conf/<group>/*.yaml picks values for it),
 so a typo in an override fails with Hydra's error naming the key.
+
+A config is an OmegaConf `DictConfig` only while it is composed (`sigmarl.compose`) or
+handed over by Hydra (a sweep job, `sigmarl.sweep.run_job`); there it becomes a `Config`
+(`as_config`), and a config read back from a file (a checkpoint's, a run folder's
+config.yaml) becomes one through `config_from_dict`. Its plain-dict form (`as_dict`: the
+same keys, order and values as `OmegaConf.to_container`) is what config.yaml, checkpoints,
+MLflow params and the evaluation key hold.
 """
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, get_type_hints
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, OmegaConf
+from omegaconf import MISSING, DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
 from sigmarl.ablation import PAPER_SCENARIOS, model_label
+from sigmarl.errors import SigmarlError
 
 
 @dataclass
@@ -140,6 +152,51 @@ class Config:
     model: str = MISSING  # M0..M5 or custom-<hash>, derived from the obs flags (conf/config.yaml)
     runs_root: str = MISSING  # the study's run folders: <runs_root>/<model>/seed<seed>
     run_dir: str = MISSING  # where checkpoints live; set by conf/config.yaml
+
+
+def as_config(cfg: Config | DictConfig) -> Config:
+    """The typed config of a composed (resolved) `DictConfig`; a `Config` is returned as it is."""
+    if isinstance(cfg, Config):
+        return cfg
+    config = OmegaConf.to_object(cfg)
+    if not isinstance(config, Config):  # a DictConfig not composed on the schema
+        raise TypeError(f"expected a config on the Config schema, got {type(config).__name__}")
+    return config
+
+
+def config_from_dict(values: Mapping[str, Any], what: str = "config") -> Config:
+    """A saved config (a checkpoint's `config`, a run folder's config.yaml) on the schema.
+
+    Keys the schema lacks (settings removed from sigmarl since) are dropped and settings it
+    added since take their defaults, so a file from an older sigmarl still loads (one from
+    before `model` and `runs_root` existed: the label derived from its flags, the folders
+    ""); a value of the wrong type is a SigmarlError naming `what`.
+    """
+    try:
+        merged = OmegaConf.merge(OmegaConf.structured(Config), _known(values, Config))
+        for key in ("model", "runs_root", "run_dir"):  # mandatory (MISSING) in the schema
+            if OmegaConf.is_missing(merged, key):
+                merged[key] = model_label(merged.obs) if key == "model" else ""
+        return as_config(merged)
+    except OmegaConfBaseException as e:
+        raise SigmarlError(f"{what} does not fit sigmarl's config schema: {str(e).splitlines()[0]}") from e
+
+
+def _known(values: Mapping[str, Any], schema: type) -> dict[str, Any]:
+    """`values` without the keys that `schema` (a config dataclass) lacks, group by group."""
+    types = get_type_hints(schema)
+    return {key: _known(value, types[key]) if dataclasses.is_dataclass(types[key]) and isinstance(value, Mapping)
+            else value for key, value in values.items() if key in types}
+
+
+def as_dict(node: Any) -> dict[str, Any]:
+    """The plain-dict form of a config or of one of its groups (nested dicts and lists)."""
+    return dataclasses.asdict(node)
+
+
+def to_yaml(cfg: Config) -> str:
+    """A run folder's config.yaml: the groups and keys in the schema's order."""
+    return OmegaConf.to_yaml(as_dict(cfg))
 
 
 def _register_resolvers() -> None:

@@ -17,14 +17,16 @@ import sys
 import traceback
 import warnings
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override
 from hydra.errors import HydraException
-from omegaconf import DictConfig, open_dict
+from omegaconf import DictConfig
 
 from sigmarl.ablation import MODELS, check_eval
+from sigmarl.config import Config, as_config
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.resources import enter_sweep_folder, job_threads, sweep_folder_override
 
@@ -32,8 +34,11 @@ FAILED_FILE = "failed.txt"
 DONE_FILE = "evaluated.txt"
 
 
-def run_job(cfg: DictConfig) -> str:
+def run_job(cfg: DictConfig | Config) -> str:
     """Train (or resume, or skip) and evaluate one model; returns 'done' or 'failed'.
+
+    `cfg` is the job's config as Hydra's launcher hands it over (a DictConfig, typed here)
+    or an already composed `Config`.
 
     Every step can be killed at any instant and the job run again: training resumes from
     `checkpoint.pt` (or starts from scratch if it never got that far) and completes the
@@ -49,12 +54,11 @@ def run_job(cfg: DictConfig) -> str:
 
     handle_sigterm()  # in a launcher's worker process, SIGTERM must end runs as KILLED too
     enter_sweep_folder()
+    cfg = as_config(cfg)
     run_dir = Path(cfg.run_dir)
     (run_dir / FAILED_FILE).unlink(missing_ok=True)
     try:
-        with open_dict(cfg):
-            cfg.resume = (run_dir / ckpt.RESUME_FILE).exists()
-            cfg.threads = job_threads(cfg.threads)
+        cfg = replace(cfg, resume=(run_dir / ckpt.RESUME_FILE).exists(), threads=job_threads(cfg.threads))
         result = train(cfg)
         if not result.finished:
             return "interrupted"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Unbounded
@@ -12,6 +14,9 @@ from sigmarl.env.observation import ObsFlags
 from sigmarl.env.scenario import ScenarioSettings, TrafficScenario
 from sigmarl.errors import SigmarlError
 from sigmarl.maps import RoadMap, load_map
+
+if TYPE_CHECKING:
+    from sigmarl.config import Config, MapConfig
 
 
 class TrafficEnv(VmasEnv):
@@ -107,18 +112,19 @@ def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: i
 
 
 def make_env(
-    cfg,
+    cfg: Config,
     *,
     num_envs: int = 32,
     n_agents: int | None = None,
     mode: str = "train",
     max_steps: int | None = None,
-    map_cfg=None,
+    map_cfg: MapConfig | None = None,
     road_map: RoadMap | None = None,
     seed: int | None = None,
     device: str | None = None,
 ) -> EnvBase:
-    """A VmasEnv over TrafficScenario; keyword arguments override the config's values.
+    """A VmasEnv over TrafficScenario; keyword arguments override the config's values
+    (`map_cfg` its map, `road_map` an already loaded one).
 
     A time-out is reported as `truncated` (bootstrapped by GAE), never as `terminated`.
     """

@@ -6,11 +6,15 @@ Pure function of the batched state; every tensor is [E, A, ...].
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import torch
 
 from sigmarl.env.geometry import rotate, to_local, wrap_angle
 from sigmarl.env.params import NORMALISERS, VEHICLE
+
+if TYPE_CHECKING:
+    from sigmarl.config import ObsConfig
 
 WORLD_SIZE = NORMALISERS.world
 EGO_SCALE = NORMALISERS.ego
@@ -30,7 +34,7 @@ class ObsFlags:
     n_ref_points: int = 3
 
     @classmethod
-    def from_config(cls, cfg) -> ObsFlags:
+    def from_config(cls, cfg: ObsConfig) -> ObsFlags:
         return cls(
             ego_view=bool(cfg.ego_view),
             vertices=bool(cfg.vertices),

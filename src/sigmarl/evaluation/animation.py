@@ -5,25 +5,25 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from omegaconf import OmegaConf
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.ablation import SCENARIOS
+from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.env.render import render_rollout
-from sigmarl.evaluation.rollout import scenario_map_config
 
 
 def animate_checkpoint(path: Path, scenarios: list[str], steps: int, seed: int, out_dir: Path,
                        prefix: str = "M0") -> dict[str, Path]:
     """{"animation_<scenario>": <out_dir>/animations/<prefix>_<scenario>.gif} for each scenario."""
+    from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import load_policy
 
     out = {}
     for scenario in scenarios:
         n_agents = SCENARIOS[scenario][1]
         actor, state = load_policy(path, n_agents=n_agents)
-        train_cfg = OmegaConf.create(state["config"])
+        train_cfg = ckpt.config_of(state, path)
         env = make_env(train_cfg, num_envs=1, n_agents=n_agents, mode="test", max_steps=steps,
                        map_cfg=scenario_map_config(scenario), seed=seed)
         with set_exploration_type(ExplorationType.DETERMINISTIC):

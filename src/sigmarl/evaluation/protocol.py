@@ -14,10 +14,10 @@ import tempfile
 from pathlib import Path
 
 import pandas as pd
-from omegaconf import DictConfig, OmegaConf
 
 from sigmarl import crash
 from sigmarl.ablation import SCENARIOS, check_eval, model_label, obs_strategies
+from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.paths import ensure_writable
@@ -35,7 +35,7 @@ def checkpoint_name(which: str) -> str:
     return ckpt.BEST_FILE if which == "best" else ckpt.FINAL_FILE
 
 
-def resolve_checkpoint(target: str, cfg: DictConfig, download_dir: Path | None = None) -> Path:
+def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = None) -> Path:
     """A checkpoint file from a path, a training run folder, or an MLflow training run id."""
     name = checkpoint_name(cfg.eval.checkpoint)
     path = Path(target)
@@ -51,9 +51,10 @@ def resolve_checkpoint(target: str, cfg: DictConfig, download_dir: Path | None =
     return records.training_checkpoint(connect(cfg, write=False), target, name, out)
 
 
-def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] | None = None,
+def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] | None = None,
                         device: str = "cpu", progress: bool = True) -> tuple[pd.DataFrame, dict]:
     """Per-simulation rows of a trained policy on each scenario, and the checkpoint's state."""
+    from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import load_policy
 
     scenarios = check_eval(eval_cfg, scenarios or None)
@@ -62,12 +63,11 @@ def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] |
     for scenario in scenarios:
         n_agents = SCENARIOS[scenario][1]
         actor, state = load_policy(path, n_agents=n_agents, device=device)
-        train_cfg = OmegaConf.create(state["config"])
+        train_cfg = ckpt.config_of(state, path)
         rows = evaluate_policy(actor, train_cfg, scenario, n_sims=eval_cfg.n_sims, steps=eval_cfg.steps,
                                seed=eval_cfg.seed, n_agents=n_agents, device=device, progress=progress)
         frames.append(rows)
         crash.point(f"eval:scenario:{scenario}")
-    train_cfg = OmegaConf.create(state["config"])
     rows = pd.concat(frames, ignore_index=True)
     rows.insert(0, "model", model_label(train_cfg.obs))
     rows.insert(1, "obs", obs_strategies(train_cfg.obs))
@@ -75,7 +75,7 @@ def evaluate_checkpoint(path: Path, eval_cfg: DictConfig, scenarios: list[str] |
     return rows, state
 
 
-def rows_file_for(checkpoint: Path, cfg: DictConfig) -> Path:
+def rows_file_for(checkpoint: Path, cfg: Config) -> Path:
     """Where `sigmarl evaluate` keeps the rows: evaluation_rows.csv beside the checkpoint,
     unless that holds another protocol's rows (then evaluation_rows-<protocol key>.csv)."""
     key = records.eval_key(cfg.eval)
@@ -96,7 +96,7 @@ def _read_meta(rows_file: Path) -> dict | None:
         return None
 
 
-def _identity(path: Path, cfg: DictConfig) -> dict[str, str]:
+def _identity(path: Path, cfg: Config) -> dict[str, str]:
     return {"eval_key": records.eval_key(cfg.eval),
             "checkpoint_sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
 
@@ -124,7 +124,7 @@ def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) ->
     _write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
 
 
-def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scenarios=None,
+def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenarios=None,
                      progress: bool = True, rows_file: Path | None = None,
                      ) -> tuple[pd.DataFrame, str | None]:
     """Evaluate a checkpoint and record it in MLflow (unless tracking is off).
@@ -133,13 +133,13 @@ def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scen
     before logging, and rows saved by an earlier attempt under the same protocol and
     checkpoint are logged without evaluating again.
     """
+    from sigmarl.training import checkpoint as ckpt
+
     client = connect(cfg) if cfg.tracking.enabled else None
     identity = _identity(path, cfg) if rows_file is not None else {}
     rows = _saved_rows(rows_file, identity) if rows_file is not None else None
     if rows is not None:
-        from sigmarl.training.checkpoint import load
-
-        state = load(path, cfg.device)
+        state = ckpt.load(path, cfg.device)
     else:
         if rows_file is not None:
             ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use --out <file>")
@@ -150,7 +150,7 @@ def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scen
         return rows, None
     crash.point("eval:rows")
     exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
-    train_cfg = OmegaConf.create(state["config"])
+    train_cfg = ckpt.config_of(state, path)
     tags = {
         "model": str(rows["model"].iloc[0]),
         "obs": obs_strategies(train_cfg.obs),
@@ -159,7 +159,7 @@ def evaluate_and_log(path: Path, cfg: DictConfig, train_run_id: str | None, scen
         "checkpoint": str(path),
         "eval_key": records.eval_key(cfg.eval),
     }
-    params = {f"eval.{k}": str(v) for k, v in OmegaConf.to_container(cfg.eval, resolve=True).items()}
+    params = {f"eval.{k}": str(v) for k, v in as_dict(cfg.eval).items()}
     params["checkpoint_iteration"] = str(state.get("iteration"))
     run_id = records.log_evaluation(client, exp_id, rows, tags, params)
     return rows, run_id

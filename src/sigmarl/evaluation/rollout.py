@@ -16,7 +16,8 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from tqdm.auto import tqdm
 
 from sigmarl.ablation import SCENARIOS
-from sigmarl.compose import map_config
+from sigmarl.compose import scenario_map_config
+from sigmarl.config import Config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
 
@@ -39,17 +40,10 @@ def as_td_policy(policy) -> Policy:
     return run
 
 
-def scenario_map_config(scenario: str):
-    """The map config of a study scenario (conf/map/<name>.yaml)."""
-    if scenario not in SCENARIOS:
-        raise SigmarlError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    return map_config(SCENARIOS[scenario][0])
-
-
 @torch.no_grad()
 def evaluate_policy(
     policy,
-    cfg,
+    cfg: Config,
     scenario: str,
     n_sims: int = 32,
     steps: int = 1200,

@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from sigmarl.errors import MapError
 from sigmarl.maps.model import Lanelet, RoadMap, Route
+
+if TYPE_CHECKING:
+    from sigmarl.config import MapConfig
 
 __all__ = ["Lanelet", "MapError", "RoadMap", "Route", "load_map"]
 
 
-def load_map(cfg) -> RoadMap:
+def load_map(cfg: MapConfig) -> RoadMap:
     """Build the RoadMap a `MapConfig` describes."""
     kind = cfg.kind
     if kind == "cpm":

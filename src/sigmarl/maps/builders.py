@@ -17,12 +17,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sigmarl.errors import MapError
 from sigmarl.maps.model import Lanelet, RoadMap
 from sigmarl.maps.routes import build_route, enumerate_routes
+
+if TYPE_CHECKING:
+    from sigmarl.config import MapConfig
 
 STRAIGHT_STEP = 0.1  # vertex spacing on straight lanes
 ARC_STEP = 0.05  # center-line vertex spacing on curves (boundaries: ~0.035-0.065 m)
@@ -314,7 +318,7 @@ def build_roundabout(
     return _finish(name, lanelets, w)
 
 
-def build(cfg) -> RoadMap:
+def build(cfg: MapConfig) -> RoadMap:
     """The procedural map a MapConfig (kind intersection | on_ramp | roundabout) describes."""
     kind, name, w = cfg.kind, cfg.name or cfg.kind, float(cfg.lane_width)
     if w <= 0:

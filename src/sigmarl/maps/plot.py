@@ -15,8 +15,6 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from sigmarl.ablation import PAPER_SCENARIOS
-from sigmarl.ablation import SCENARIOS as STUDY_SCENARIOS
 from sigmarl.maps.model import RoadMap
 
 _ROAD = "#e6e6e6"
@@ -88,21 +86,18 @@ def save_map_figure(roadmap: RoadMap, path: str | Path, show_ids: bool = False) 
     return _save(fig, path)
 
 
-def save_scenario_maps(path: str | Path, scenarios: Sequence[str] = PAPER_SCENARIOS) -> Path:
-    """The study's scenario maps, two or three to a row; by default the paper's Fig. 4: the
-    whole CPM map with its loops and the paper's intersection, on-ramp and roundabout."""
-    from sigmarl.compose import map_config
-    from sigmarl.maps import load_map
-
+def save_scenario_maps(path: str | Path, scenarios: Sequence[tuple[str, RoadMap, int]]) -> Path:
+    """Scenario maps, two or three to a row: (scenario name, its map, its number of agents)
+    each; for the paper's four scenarios, the paper's Fig. 4 (the whole CPM map with its loops
+    and the paper's intersection, on-ramp and roundabout)."""
     cols = 2 if len(scenarios) <= 4 else 3
     rows = -(-len(scenarios) // cols)
     fig = Figure(figsize=(5 * cols, 4.25 * rows), layout="constrained")
     axes = fig.subplots(rows, cols, squeeze=False)
-    for ax, scenario in zip(axes.flat, scenarios, strict=False):
-        m = load_map(map_config(STUDY_SCENARIOS[scenario][0]))
+    for ax, (scenario, m, n_agents) in zip(axes.flat, scenarios, strict=False):
         plot_map(m, ax)
         ax.set_title(f"{scenario} ({m.name}): {len(m.lanelets)} lanelets, {len(m.routes)} routes, "
-                     f"{STUDY_SCENARIOS[scenario][1]} agents", fontsize=9)
+                     f"{n_agents} agents", fontsize=9)
     for ax in list(axes.flat)[len(scenarios):]:
         ax.set_axis_off()
     return _save(fig, path)

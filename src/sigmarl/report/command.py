@@ -10,16 +10,15 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from omegaconf import DictConfig
-
 from sigmarl.ablation import SCENARIOS
+from sigmarl.config import Config
 from sigmarl.report.build import Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_results
 from sigmarl.tracking import connect, records
 
 
 def make_report(
-    cfg: DictConfig,
+    cfg: Config,
     out_dir: Path | None = None,
     latex: bool = False,
     trim: bool = False,
@@ -54,7 +53,7 @@ def make_report(
 
 def make_report_from_folder(
     root: Path,
-    cfg: DictConfig,
+    cfg: Config,
     out_dir: Path | None = None,
     latex: bool = False,
     trim: bool = False,
@@ -84,7 +83,7 @@ def make_report_from_folder(
     return report
 
 
-def _build(rows, curves, out_dir: Path, cfg: DictConfig, m0_checkpoint: Callable[[], Path], *,
+def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[], Path], *,
            models, trim, compare_paper, latex, ci, figures, animation_steps, extra_notes=()) -> Report:
     """Tables, figures, the scenarios' maps and M0's animations, drawn into a staging folder and
     moved into out_dir only when all are complete."""
@@ -101,7 +100,7 @@ def _build(rows, curves, out_dir: Path, cfg: DictConfig, m0_checkpoint: Callable
     return report
 
 
-def _folder_checkpoint(results, root: Path, cfg: DictConfig) -> Path:
+def _folder_checkpoint(results, root: Path, cfg: Config) -> Path:
     """M0's evaluated checkpoint (its first seed) in a results folder."""
     from sigmarl.errors import SigmarlError
     from sigmarl.evaluation.protocol import checkpoint_name
@@ -136,9 +135,13 @@ def _publish(report: Report, staging: Path, out_dir: Path) -> None:
 
 
 def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
+    """The maps the scenarios ran on, as the evaluation builds them."""
+    from sigmarl.compose import scenario_map_config
+    from sigmarl.maps import load_map
     from sigmarl.maps.plot import save_scenario_maps
 
-    report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png", scenarios)
+    maps = [(s, load_map(scenario_map_config(s)), SCENARIOS[s][1]) for s in scenarios]
+    report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png", maps)
 
 
 def _mlflow_checkpoint(client, experiment: str) -> Path:
@@ -151,7 +154,7 @@ def _mlflow_checkpoint(client, experiment: str) -> Path:
     return path
 
 
-def _animations(path: Path, cfg: DictConfig, out_dir: Path, steps: int, scenarios: list[str]) -> dict[str, Path]:
+def _animations(path: Path, cfg: Config, out_dir: Path, steps: int, scenarios: list[str]) -> dict[str, Path]:
     """One GIF per scenario of checkpoint `path` driving (evaluation's work; the report only
     collects the files)."""
     from sigmarl.evaluation.animation import animate_checkpoint

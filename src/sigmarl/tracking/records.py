@@ -16,10 +16,10 @@ from collections.abc import Iterable
 from pathlib import Path
 
 import pandas as pd
-from omegaconf import DictConfig, OmegaConf
 
 from sigmarl import crash
 from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS
+from sigmarl.config import EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError, was_interrupted
 from sigmarl.tracking.store import experiment_id
@@ -27,9 +27,9 @@ from sigmarl.tracking.store import experiment_id
 ROWS_ARTIFACT = "evaluation_rows.csv"
 
 
-def eval_key(eval_cfg: DictConfig) -> str:
+def eval_key(eval_cfg: EvalConfig) -> str:
     """A short hash of the evaluation protocol: runs with equal keys are interchangeable."""
-    protocol = OmegaConf.to_container(eval_cfg, resolve=True)
+    protocol = as_dict(eval_cfg)
     # A scenario's name does not say which map it ran on (Table I's names moved from the
     # procedural maps to the paper's own): the key holds each scenario's map and agents.
     protocol["maps"] = {s: list(SCENARIOS[s]) for s in protocol["scenarios"] if s in SCENARIOS}

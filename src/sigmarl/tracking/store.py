@@ -21,9 +21,13 @@ import sqlite3
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 from urllib.parse import urlparse
 
 from sigmarl.errors import SigmarlError
+
+if TYPE_CHECKING:
+    from sigmarl.config import Config
 
 # read by MLflow's REST client at each request; the user's own settings win
 os.environ.setdefault("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "2")
@@ -35,7 +39,7 @@ os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
 LOCK_TIMEOUT_S = 300  # another process creating the store holds the lock for seconds
 
 
-def tracking_uri(cfg) -> str:
+def tracking_uri(cfg: Config) -> str:
     """The configured URI, or MLflow's default (a SQLite `mlflow.db` in the working folder)."""
     if cfg.tracking.tracking_uri:
         return str(cfg.tracking.tracking_uri)
@@ -60,7 +64,7 @@ def artifact_location(uri: str) -> str | None:
     return None if db is None else (db.resolve().parent / "mlartifacts").as_uri()
 
 
-def connect(cfg, write: bool = True):
+def connect(cfg: Config, write: bool = True):
     """An MlflowClient on the configured store, checked by one query; SigmarlError if unusable.
 
     With `write=False` (a command that only reads), an existing SQLite store is opened as it

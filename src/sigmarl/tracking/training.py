@@ -15,9 +15,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
-
 from sigmarl.ablation import model_label, obs_strategies
+from sigmarl.config import Config, as_dict
 from sigmarl.errors import SigmarlError
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import connect, experiment_id
@@ -55,7 +54,7 @@ class Tracker:
         return self.client is not None
 
     @classmethod
-    def open(cls, cfg: DictConfig, run_id: str | None = None, reopen: bool = True) -> Tracker:
+    def open(cls, cfg: Config, run_id: str | None = None, reopen: bool = True) -> Tracker:
         """Connect, then create the run, or attach to `run_id` (and mark it RUNNING again
         with `reopen`, for a resume). Fails before training."""
         if not cfg.tracking.enabled:
@@ -96,7 +95,7 @@ class Tracker:
                 "(set tracking.tracking_uri=..., or tracking.enabled=false to train without it)"
             ) from e
         tracker = cls(client, run.info.run_id)
-        tracker.log_params(flatten(OmegaConf.to_container(cfg, resolve=True)))
+        tracker.log_params(flatten(as_dict(cfg)))
         return tracker
 
     def _guard(self, method: str, *args: Any, **kwargs: Any) -> Any:

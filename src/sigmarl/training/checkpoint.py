@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from sigmarl.config import Config, config_from_dict
 from sigmarl.errors import SigmarlError
 
 FORMAT = 1
@@ -82,6 +83,11 @@ def load(path: Path, device: str | torch.device = "cpu", resume: bool = False) -
     if not isinstance(state["config"], dict) or not isinstance(state["iteration"], int):
         raise SigmarlError(f"checkpoint {path}: 'config' or 'iteration' is malformed")
     return state
+
+
+def config_of(state: dict[str, Any], path: Path) -> Config:
+    """The training config a loaded checkpoint holds (kept in it as a plain dict)."""
+    return config_from_dict(state["config"], f"checkpoint {path}: its config")
 
 
 def _tensor_dict(d: Any) -> bool:

@@ -16,10 +16,10 @@ from typing import Any, NoReturn
 
 import numpy as np
 import torch
-from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from sigmarl import crash
+from sigmarl.config import Config, PPOConfig, as_dict, to_yaml
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.paths import ensure_writable
 from sigmarl.tracking import Tracker, flatten
@@ -59,18 +59,18 @@ def iteration_seed(seed: int, iteration: int) -> int:
     return int(np.random.SeedSequence([seed, iteration]).generate_state(1)[0] >> 1)
 
 
-def learning_rate(ppo: DictConfig, iteration: int) -> float:
+def learning_rate(ppo: PPOConfig, iteration: int) -> float:
     """Linear from ppo.lr at the first iteration (0) to ppo.lr_final at the last."""
     frac = iteration / max(ppo.iterations - 1, 1)
     return ppo.lr + (ppo.lr_final - ppo.lr) * frac
 
 
-def _check(cfg: DictConfig) -> None:
+def _check(cfg: Config) -> None:
     """Budget sanity, before anything is built."""
     ppo = cfg.ppo
     for key in ("iterations", "frames_per_iteration", "num_envs", "epochs", "minibatch_size"):
-        if ppo[key] < 1:
-            raise SigmarlError(f"ppo.{key} must be positive, got {ppo[key]}")
+        if getattr(ppo, key) < 1:
+            raise SigmarlError(f"ppo.{key} must be positive, got {getattr(ppo, key)}")
     if ppo.frames_per_iteration % ppo.num_envs:
         raise SigmarlError(
             f"ppo.frames_per_iteration={ppo.frames_per_iteration} is not a multiple of "
@@ -97,14 +97,13 @@ def _device(name: str) -> torch.device:
     return device
 
 
-def config_changes(saved: dict[str, Any], cfg: DictConfig) -> list[str]:
-    """Training settings in which `cfg` differs from a checkpoint's config. A knob the saved
-    config lacks (added to sigmarl since) counts only if set away from its default, and one
-    that no longer exists cannot change anything: a checkpoint from an older sigmarl resumes."""
-    from sigmarl.config import Config
-
-    old, new = flatten(saved), flatten(OmegaConf.to_container(cfg, resolve=True))
-    default = flatten(OmegaConf.to_container(OmegaConf.structured(Config)))
+def config_changes(saved: dict[str, Any], cfg: Config) -> list[str]:
+    """Training settings in which `cfg` differs from a checkpoint's config (the plain dict it
+    holds). A knob the saved config lacks (added to sigmarl since) counts only if set away from
+    its default, and one that no longer exists cannot change anything: a checkpoint from an
+    older sigmarl resumes."""
+    old, new = flatten(saved), flatten(as_dict(cfg))
+    default = flatten(as_dict(Config()))
     changed = []
     for key in sorted(new):
         if not key.startswith(RESUME_MUST_MATCH) or key == "ppo.stop_after":
@@ -114,7 +113,7 @@ def config_changes(saved: dict[str, Any], cfg: DictConfig) -> list[str]:
     return changed
 
 
-def _resume_point(cfg: DictConfig, run_dir: Path, device: torch.device) -> dict[str, Any] | None:
+def _resume_point(cfg: Config, run_dir: Path, device: torch.device) -> dict[str, Any] | None:
     """The checkpoint to resume from, or None to start from scratch.
 
     A folder without `checkpoint.pt` holds no training to continue (a run killed before its
@@ -140,7 +139,7 @@ def _resume_point(cfg: DictConfig, run_dir: Path, device: torch.device) -> dict[
     state = ckpt.load(path, device, resume=True)
     changed = config_changes(state["config"], cfg)
     if changed:
-        old, new = flatten(state["config"]), flatten(OmegaConf.to_container(cfg, resolve=True))
+        old, new = flatten(state["config"]), flatten(as_dict(cfg))
         diffs = ", ".join(f"{k}: {old.get(k, '(default)')} -> {new.get(k)}" for k in changed[:5])
         raise SigmarlError(f"cannot resume {path} with a different config ({diffs})")
     return state
@@ -177,7 +176,7 @@ class Parts:
             self.env.close()
 
 
-def build(cfg: DictConfig, device: torch.device) -> Parts:
+def build(cfg: Config, device: torch.device) -> Parts:
     """Training environment, networks (initialised from cfg.seed), loss, GAE and optimiser."""
     from sigmarl.env import make_env
 
@@ -193,7 +192,7 @@ def build(cfg: DictConfig, device: torch.device) -> Parts:
                  optimiser, dims, collector)
 
 
-def train(cfg: DictConfig) -> TrainResult:
+def train(cfg: Config) -> TrainResult:
     _check(cfg)
     torch.set_num_threads(cfg.threads)
     device = _device(cfg.device)
@@ -227,7 +226,7 @@ def train(cfg: DictConfig) -> TrainResult:
             "best_reward": best,
             "mean_episode_reward": reward,
             "mlflow_run_id": run_id,
-            "config": OmegaConf.to_container(cfg, resolve=True),
+            "config": as_dict(cfg),
             "dims": parts.dims,
         }
 
@@ -242,7 +241,7 @@ def train(cfg: DictConfig) -> TrainResult:
             # the rows after the resume point are computed again; MLflow gets what it missed
             tracker.sync_metrics(metrics_file.truncate(metrics_path, start))
         else:
-            (run_dir / CONFIG_FILE).write_text(OmegaConf.to_yaml(cfg, resolve=True))
+            (run_dir / CONFIG_FILE).write_text(to_yaml(cfg))
             metrics_path.unlink(missing_ok=True)
             tracker.log_artifact(run_dir / CONFIG_FILE)
             crash.point("train:start")
@@ -331,7 +330,7 @@ def _finish_and_raise(tracker: Tracker, error: BaseException) -> NoReturn:
     raise Terminated() from error
 
 
-def _open_tracker(cfg: DictConfig, run_dir: Path, state: dict[str, Any] | None) -> Tracker:
+def _open_tracker(cfg: Config, run_dir: Path, state: dict[str, Any] | None) -> Tracker:
     """Reopen the resumed run, or create one; a run left by a start that was killed before
     its first checkpoint is deleted (it holds nothing the new one will not)."""
     old = (state or {}).get("mlflow_run_id")
@@ -352,7 +351,7 @@ def _complete_record(tracker: Tracker, run_dir: Path, iterations: int) -> None:
     tracker.finish("FINISHED")
 
 
-def _complete(cfg: DictConfig, run_dir: Path, state: dict[str, Any]) -> TrainResult:
+def _complete(cfg: Config, run_dir: Path, state: dict[str, Any]) -> TrainResult:
     """A re-run of a finished training: finish what a kill after the last iteration left
     undone (final.pt, the MLflow record), then report it finished."""
     iterations = state["iteration"]
@@ -380,8 +379,8 @@ def load_policy(
     """
     state = ckpt.load(Path(path), device)
     dims = state["dims"]
+    net = ckpt.config_of(state, Path(path)).network
     try:
-        net = OmegaConf.create(state["config"]).network
         actor = make_actor(net, dims["obs_dim"], n_agents or dims["n_agents"], dims["action_low"],
                            dims["action_high"], device)
     except Exception as e:  # a config that builds no network

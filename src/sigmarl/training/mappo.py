@@ -9,7 +9,6 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import torch
-from omegaconf import DictConfig
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModule
 from torchrl.collectors import Collector
@@ -17,6 +16,7 @@ from torchrl.envs import EnvBase
 from torchrl.envs.utils import ExplorationType
 from torchrl.objectives.value import GAE
 
+from sigmarl.config import PPOConfig
 from sigmarl.training.networks import VALUE
 from sigmarl.training.ppo_loss import (
     ADVANTAGE,
@@ -32,7 +32,7 @@ from sigmarl.training.ppo_loss import (
 
 __all__ = ["collect", "make_collector", "make_gae", "make_loss", "rollout_stats", "update"]
 
-def make_gae(critic: TensorDictModule, ppo: DictConfig) -> GAE:
+def make_gae(critic: TensorDictModule, ppo: PPOConfig) -> GAE:
     gae = GAE(gamma=ppo.gamma, lmbda=ppo.lmbda, value_network=critic, average_gae=False, time_dim=1)
     gae.set_keys(
         reward=REWARD,
@@ -118,7 +118,7 @@ def update(
     data: TensorDictBase,
     loss: LeanPPOLoss | TorchrlPPOLoss,
     optimiser: torch.optim.Optimizer,
-    ppo: DictConfig,
+    ppo: PPOConfig,
 ) -> dict[str, float]:
     """`epochs` passes of shuffled minibatches over the rollout; returns the mean loss terms."""
     batch = loss.prepare(data)

@@ -12,10 +12,11 @@ from collections.abc import Callable
 
 import torch
 import torch.nn.functional as F
-from omegaconf import DictConfig
 from tensordict.nn import NormalParamExtractor, TensorDictModule
 from torch import nn
 from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
+
+from sigmarl.config import NetworkConfig
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
@@ -36,7 +37,7 @@ def _activation(name: str) -> type[nn.Module]:
 
 
 def make_actor(
-    net: DictConfig,
+    net: NetworkConfig,
     obs_dim: int,
     n_agents: int,
     action_low: torch.Tensor,
@@ -74,7 +75,7 @@ def make_actor(
 
 
 def make_critic(
-    net: DictConfig, obs_dim: int, n_agents: int, device: str | torch.device = "cpu"
+    net: NetworkConfig, obs_dim: int, n_agents: int, device: str | torch.device = "cpu"
 ) -> TensorDictModule:
     """Centralised value over all agents' observations.
 

@@ -26,12 +26,12 @@ from pathlib import Path
 
 import torch
 import torch.nn.functional as F
-from omegaconf import DictConfig
 from tensordict import TensorDictBase
 from torch import nn
 from torchrl.modules import ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss
 
+from sigmarl.config import PPOConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.training.networks import (
     ACTION,
@@ -81,7 +81,7 @@ def resolve_precision(precision: str, device: torch.device | str) -> str:
 class TorchrlPPOLoss:
     """torchrl's ClipPPOLoss over TensorDict minibatches."""
 
-    def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: DictConfig):
+    def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: PPOConfig):
         self.loss = ClipPPOLoss(
             actor,
             critic,
@@ -111,14 +111,14 @@ class TorchrlPPOLoss:
 class LeanPPOLoss:
     """Clipped PPO (objective, smooth-L1 critic, one-sample entropy of the tanh-Gaussian)."""
 
-    def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: DictConfig):
+    def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: PPOConfig):
         self.head = PolicyHead(actor)
         self.value = plain_forward(critic.module)
         self.clip = (math.log1p(-ppo.clip_epsilon), math.log1p(ppo.clip_epsilon))
         self.entropy_coef = ppo.entropy_coef
         self.normalize_advantage = ppo.normalize_advantage
         device = next(critic.parameters()).device
-        self.precision = resolve_precision(ppo.get("precision", "fp32"), device)
+        self.precision = resolve_precision(ppo.precision, device)
         self.autocast = (partial(torch.autocast, device.type, dtype=torch.bfloat16)
                          if self.precision == "bf16" else contextlib.nullcontext)
 
@@ -177,9 +177,9 @@ class LeanPPOLoss:
         return total, terms
 
 
-def make_loss(actor: ProbabilisticActor, critic: nn.Module, ppo: DictConfig) -> LeanPPOLoss | TorchrlPPOLoss:
+def make_loss(actor: ProbabilisticActor, critic: nn.Module, ppo: PPOConfig) -> LeanPPOLoss | TorchrlPPOLoss:
     if ppo.loss == "torchrl":
-        if resolve_precision(ppo.get("precision", "fp32"), next(critic.parameters()).device) != "fp32":
+        if resolve_precision(ppo.precision, next(critic.parameters()).device) != "fp32":
             raise SigmarlError("ppo.precision=bf16 needs ppo.loss=lean (ClipPPOLoss would compute "
                                "log-probabilities in bf16)")
         return TorchrlPPOLoss(actor, critic, ppo)
