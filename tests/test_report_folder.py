@@ -14,9 +14,8 @@ from mlflow import MlflowClient
 
 from sigmarl.ablation import METRIC_COLUMNS, PAPER_SCENARIOS
 from sigmarl.cli import main
-from sigmarl.compose import compose_config
+from sigmarl.env.params import RULES_REVISION
 from sigmarl.report.folder import read_results
-from sigmarl.tracking import records
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 TABLE_FILES = ["table.md", "table.csv", "table.tex", "summary.csv", "composite_scores.csv",
@@ -87,17 +86,16 @@ def test_unevaluated_runs_are_named_and_left_out(tmp_path, capsys):
     assert set(summary.loc[summary["model"] == "M4", "n_seeds"]) == {1}
 
 
-def test_rows_of_another_protocol_or_older_rules_are_left_out(tmp_path, capsys):
-    # evaluation.json names the protocol the rows were measured under; rows measured under
-    # older environment rules (env.params.RULES_REVISION) must not mix into the table.
+def test_rows_measured_under_older_rules_are_left_out(tmp_path, capsys):
+    # evaluation.json says which environment rules measured the rows; rows from before a fix
+    # that changed what is measured (env.params.RULES_REVISION) must not mix into the table.
     source = tmp_path / "results"
     shutil.copytree(FIXTURE, source)
-    current = records.eval_key(compose_config(["tracking.enabled=false"]).eval)
     (source / "M4" / "seed1" / "evaluation.json").write_text(json.dumps({"eval_key": "0123456789ab"}))
-    (source / "M4" / "seed0" / "evaluation.json").write_text(json.dumps({"eval_key": current}))
+    (source / "M4" / "seed0" / "evaluation.json").write_text(json.dumps({"rules": RULES_REVISION}))
     assert report(tmp_path, "out", "--no-figures", source=source) == 0
     out = capsys.readouterr().out
-    assert "M4/seed1: evaluated under another protocol or older rules (key 0123456789ab" in out
+    assert f"M4/seed1: evaluated under the environment's rules revision 1, not {RULES_REVISION}" in out
     summary = pd.read_csv(tmp_path / "out" / "summary.csv")
     assert set(summary.loc[summary["model"] == "M4", "n_seeds"]) == {1}
 

@@ -18,6 +18,7 @@ import pandas as pd
 from sigmarl import crash
 from sigmarl.ablation import SCENARIOS, check_eval, model_label, obs_strategies
 from sigmarl.config import Config, EvalConfig, as_dict
+from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.paths import ensure_writable
@@ -120,7 +121,8 @@ def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) ->
     """Rows first, then the note saying what they are: a kill in between leaves no note."""
     _meta_path(rows_file).unlink(missing_ok=True)
     _write_atomic(rows_file, rows.to_csv(index=False))
-    meta = {**identity, "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
+    # `rules`: which environment rules measured them (`report --from` leaves out older ones)
+    meta = {**identity, "rules": RULES_REVISION, "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
     _write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
 
 

@@ -69,7 +69,7 @@ def make_report_from_folder(
     Default output: reports/<folder name>.
     """
     root = Path(root)
-    results = read_results(root, records.eval_key(cfg.eval))
+    results = read_results(root)
     out_dir = out_dir or Path("reports") / root.resolve().name
     curves = results.curves if figures and len(results.curves) else None
     client = connect(cfg) if cfg.tracking.enabled else None  # checked before any work

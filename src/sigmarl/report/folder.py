@@ -22,6 +22,7 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl.ablation import MODELS
+from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 
 ROWS_FILE = "evaluation_rows.csv"
@@ -110,17 +111,19 @@ def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | No
     return curve, None
 
 
-def _protocol_key(run: RunFolder) -> str | None:
-    """The evaluation protocol key its rows were measured under (evaluation.json), if known."""
+def _rules_of(run: RunFolder) -> int | None:
+    """The environment rules its rows were measured under (evaluation.json: `rules`, absent
+    before revision 2), or None where the folder does not say (a folder without the file)."""
     try:
-        return json.loads((run.path / ROWS_META).read_text()).get("eval_key")
-    except (OSError, ValueError, AttributeError):
+        meta = json.loads((run.path / ROWS_META).read_text())
+    except (OSError, ValueError):
         return None
+    return int(meta.get("rules", 1)) if isinstance(meta, dict) else None
 
 
-def read_results(root: Path, eval_key: str | None = None) -> FolderResults:
-    """All evaluation rows and training curves of a results folder; with `eval_key`, rows
-    measured under another protocol (or older environment rules) are left out, with a note."""
+def read_results(root: Path) -> FolderResults:
+    """All evaluation rows and training curves of a results folder. Rows measured under older
+    environment rules (`env.params.RULES_REVISION`) are left out, with a note."""
     runs = run_folders(root)
     frames, curves, notes = [], [], []
     seen: dict[tuple[str, int], Path] = {}
@@ -128,10 +131,10 @@ def read_results(root: Path, eval_key: str | None = None) -> FolderResults:
         if not (run.path / ROWS_FILE).is_file():
             notes.append(f"{run.path} has no {ROWS_FILE} (not evaluated yet): left out")
             continue
-        measured = _protocol_key(run)
-        if eval_key and measured and measured != eval_key:
-            notes.append(f"{run.path}: evaluated under another protocol or older rules (key {measured}, "
-                         f"now {eval_key}): left out; `sigmarl sweep runs_root=...` re-evaluates it")
+        rules = _rules_of(run)
+        if rules is not None and rules != RULES_REVISION:
+            notes.append(f"{run.path}: evaluated under the environment's rules revision {rules}, not "
+                         f"{RULES_REVISION}: left out; `sigmarl sweep runs_root=...` re-evaluates it")
             continue
         rows = _rows_of(run)
         model = str(rows["model"].iloc[0])
