@@ -9,6 +9,7 @@ tests/test_readme_results.py checks that it still is. Run after committing new m
 
 from __future__ import annotations
 
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -17,14 +18,19 @@ from sigmarl.cli import main as sigmarl
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-STUDY = ROOT / "results" / "paper-budget"
+STUDY = "results/paper-budget"  # relative to ROOT: the report's notes name run folders by it
 START, END = "<!-- results-table -->\n", "<!-- /results-table -->\n"
 
 
 def report_table() -> str:
+    here = Path.cwd()
     with tempfile.TemporaryDirectory() as tmp:
-        rc = sigmarl(["report", "--from", str(STUDY), "--out", tmp, "--compare-paper", "--ci", "--no-figures",
-                      "tracking.enabled=false"])
+        os.chdir(ROOT)  # tracking is off: the report writes only into `tmp`
+        try:
+            rc = sigmarl(["report", "--from", STUDY, "--out", tmp, "--compare-paper", "--ci", "--no-figures",
+                          "tracking.enabled=false"])
+        finally:
+            os.chdir(here)
         if rc:
             sys.exit(rc)
         return (Path(tmp) / "table.md").read_text(encoding="utf-8")
