@@ -28,7 +28,6 @@ from sigmarl.errors import SigmarlError
 ROWS_FILE = "evaluation_rows.csv"
 ROWS_META = "evaluation.json"  # what the rows were measured under (evaluation.protocol)
 METRICS_FILE = "metrics.csv"
-CONFIG_FILE = "config.yaml"
 REWARD = "episode_reward_mean"
 _SEED_DIR = re.compile(r"seed(-?\d+)")
 _LABEL = re.compile(r"M\d+|custom-[0-9a-f]+")
