@@ -10,6 +10,7 @@ road's curvature there. Used to look for the cause of the CPM lane-collision gap
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -19,6 +20,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from sigmarl.ablation import SCENARIOS
 from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
+from sigmarl.errors import SigmarlError
 from sigmarl.training.checkpoint import config_of
 from sigmarl.training.loop import load_policy
 
@@ -105,7 +107,7 @@ def summary(ev: pd.DataFrame, n_sims: int, steps: int, n_agents: int) -> str:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("checkpoint", type=Path)
-    p.add_argument("--scenario", default="CPM")
+    p.add_argument("--scenario", default="CPM", choices=list(SCENARIOS))
     p.add_argument("--sims", type=int, default=32)
     p.add_argument("--steps", type=int, default=1200)
     p.add_argument("--seed", type=int, default=2024)
@@ -113,7 +115,10 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=None, help="CSV of the contacts")
     a = p.parse_args()
     torch.set_num_threads(1)
-    ev = contacts(a.checkpoint, a.scenario, a.sims, a.steps, a.seed, a.noise)
+    try:
+        ev = contacts(a.checkpoint, a.scenario, a.sims, a.steps, a.seed, a.noise)
+    except SigmarlError as e:  # a missing or broken checkpoint, an unknown scenario
+        sys.exit(f"lane_contacts: error: {e}")
     print(summary(ev, a.sims, a.steps, SCENARIOS[a.scenario][1]))
     if a.out:
         ev.to_csv(a.out, index=False)

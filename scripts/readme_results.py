@@ -45,7 +45,9 @@ def readme_table(text: str) -> tuple[int, int]:
 def main() -> None:
     text = README.read_text(encoding="utf-8")
     start, end = readme_table(text)
-    README.write_text(text[:start] + report_table() + text[end:], encoding="utf-8")
+    tmp = README.with_name(".README.md.tmp")  # a kill mid-write leaves the README whole
+    tmp.write_text(text[:start] + report_table() + text[end:], encoding="utf-8")
+    os.replace(tmp, README)
 
 
 if __name__ == "__main__":

@@ -50,6 +50,11 @@ SCENARIOS: dict[str, tuple[str, int]] = {
 }
 PAPER_SCENARIOS = ("CPM", "Intersection", "On-Ramp", "Roundabout")  # Table I, the default
 
+# A run folder's evaluation: one row per (scenario, simulation), and beside it what measured
+# them (protocol key, checkpoint hash, environment rules revision).
+ROWS_FILE = "evaluation_rows.csv"
+ROWS_META = "evaluation.json"
+
 # Columns of one evaluation row: one (model, seed, scenario, simulation); `obs` lists the
 # strategies that were on (e.g. "V,DA,DB,DC" for M1).
 # Collision rates are fractions of environment steps (0..1); the report shows percent.

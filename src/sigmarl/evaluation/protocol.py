@@ -16,16 +16,20 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl import crash
-from sigmarl.ablation import SCENARIOS, check_eval, model_label, obs_strategies
+from sigmarl.ablation import (
+    ROWS_FILE,
+    ROWS_META,
+    SCENARIOS,
+    check_eval,
+    model_label,
+    obs_strategies,
+)
 from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.paths import ensure_writable
 from sigmarl.tracking import connect, experiment_id, records
-
-ROWS_FILE = "evaluation_rows.csv"
-ROWS_META = "evaluation.json"  # the protocol and checkpoint the rows file belongs to
 
 
 def checkpoint_name(which: str) -> str:

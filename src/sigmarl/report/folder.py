@@ -21,12 +21,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.ablation import MODELS
+from sigmarl.ablation import MODELS, ROWS_FILE, ROWS_META
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 
-ROWS_FILE = "evaluation_rows.csv"
-ROWS_META = "evaluation.json"  # what the rows were measured under (evaluation.protocol)
 METRICS_FILE = "metrics.csv"
 REWARD = "episode_reward_mean"
 _SEED_DIR = re.compile(r"seed(-?\d+)")
