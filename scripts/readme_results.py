@@ -1,8 +1,9 @@
-"""Rewrite the README's results table from the committed study folder.
+"""Rewrite the README's results blocks from the committed study folder.
 
-The block between the README's `<!-- results-table -->` markers is `table.md` of
+Each block between a pair of the README's markers (`<!-- results-table -->` ...
+`<!-- /results-table -->`, and so on for BLOCKS) is the named file of
 `sigmarl report --from results/paper-budget --compare-paper --ci` verbatim;
-tests/test_readme_results.py checks that it still is. Run after committing new model-seeds:
+tests/test_readme_results.py checks that they still are. Run after committing new model-seeds:
 
     python scripts/readme_results.py
 """
@@ -19,10 +20,12 @@ from sigmarl.cli import main as sigmarl
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 STUDY = "results/paper-budget"  # relative to ROOT: the report's notes name run folders by it
-START, END = "<!-- results-table -->\n", "<!-- /results-table -->\n"
+# README marker name -> the report file it holds
+BLOCKS = {"results-table": "table.md", "results-statistics": "statistics.md", "results-training": "training.md"}
 
 
-def report_table() -> str:
+def report_files() -> dict[str, str]:
+    """The report's text for each block, by marker name."""
     here = Path.cwd()
     with tempfile.TemporaryDirectory() as tmp:
         os.chdir(ROOT)  # tracking is off: the report writes only into `tmp`
@@ -33,20 +36,25 @@ def report_table() -> str:
             os.chdir(here)
         if rc:
             sys.exit(rc)
-        return (Path(tmp) / "table.md").read_text(encoding="utf-8")
+        return {name: (Path(tmp) / file).read_text(encoding="utf-8") for name, file in BLOCKS.items()}
 
 
-def readme_table(text: str) -> tuple[int, int]:
-    """Start and end offsets of the block between the markers."""
-    start = text.index(START) + len(START)
-    return start, text.index(END, start)
+def readme_block(text: str, name: str) -> tuple[int, int]:
+    """Start and end offsets of the block between the markers `name`."""
+    start_marker, end_marker = f"<!-- {name} -->\n", f"<!-- /{name} -->\n"
+    if start_marker not in text:
+        raise SystemExit(f"README.md has no {start_marker.strip()} marker")
+    start = text.index(start_marker) + len(start_marker)
+    return start, text.index(end_marker, start)
 
 
 def main() -> None:
     text = README.read_text(encoding="utf-8")
-    start, end = readme_table(text)
+    for name, content in report_files().items():
+        start, end = readme_block(text, name)
+        text = text[:start] + content + text[end:]
     tmp = README.with_name(".README.md.tmp")  # a kill mid-write leaves the README whole
-    tmp.write_text(text[:start] + report_table() + text[end:], encoding="utf-8")
+    tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, README)
 
 

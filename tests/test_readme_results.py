@@ -1,4 +1,4 @@
-"""The README's results table is what the committed study folder rebuilds, byte for byte."""
+"""The README's results blocks are what the committed study folder rebuilds, byte for byte."""
 
 from __future__ import annotations
 
@@ -18,11 +18,14 @@ def _script():
 
 
 @pytest.mark.slow
-def test_readme_table_is_the_rebuilt_table(tmp_path, monkeypatch):
+def test_readme_results_are_the_rebuilt_report(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # tracking is off; nothing may land in the checkout
     script = _script()
     text = script.README.read_text(encoding="utf-8")
-    start, end = script.readme_table(text)
-    assert text[start:end] == script.report_table(), (
-        "README's results table differs from `sigmarl report --from results/paper-budget`: "
-        "run `python scripts/readme_results.py`")
+    rebuilt = script.report_files()
+    assert set(rebuilt) == {"results-table", "results-statistics", "results-training"}
+    for name, content in rebuilt.items():
+        start, end = script.readme_block(text, name)
+        assert text[start:end] == content, (
+            f"README's {name} block differs from `sigmarl report --from results/paper-budget`: "
+            "run `python scripts/readme_results.py`")

@@ -80,3 +80,15 @@ def test_report_from_the_sweep_folder_equals_the_mlflow_report(study, monkeypatc
     for name in ("table.csv", "table.md", "summary.csv", "improvement.csv"):
         assert (root / "reports" / "from-folder" / name).read_bytes() == (
             root / "reports" / "sigmarl-quick" / name).read_bytes(), name
+
+
+def test_training_summary_is_the_same_from_mlflow_and_from_the_folder(study, monkeypatch):
+    root = study[0]
+    monkeypatch.chdir(root)
+    assert main(["report", "--from", "runs/sigmarl-quick", "--out", "reports/from-folder-training",
+                 "--no-figures", "tracking.enabled=false"]) == 0
+    mlflow_side = pd.read_csv(root / "reports" / "sigmarl-quick" / "training.csv")
+    folder_side = pd.read_csv(root / "reports" / "from-folder-training" / "training.csv")
+    assert list(mlflow_side["model"]) == list(MODELS) and (mlflow_side["iterations"] == 1).all()
+    assert (mlflow_side["compute_min"] > 0).all()  # each run's timings reached MLflow
+    pd.testing.assert_frame_equal(mlflow_side, folder_side, rtol=1e-6)

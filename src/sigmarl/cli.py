@@ -117,6 +117,8 @@ def cmd_report(args: argparse.Namespace) -> None:
     print(report.markdown)  # the table's notes are part of it
     if report.statistics:
         print(report.statistics)
+    if "training_md" in report.paths:
+        print(report.paths["training_md"].read_text(encoding="utf-8"))
     print("wrote " + ", ".join(str(p) for p in report.paths.values()))
 
 

@@ -10,7 +10,7 @@ import pandas as pd
 from sigmarl.ablation import MODELS
 from sigmarl.report.aggregate import cells, model_order, scenario_order, summarise, validate_rows
 from sigmarl.report.composite import composite_scores
-from sigmarl.report.paper import paper_values
+from sigmarl.report.paper import paper_curves, paper_values
 from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
 from sigmarl.report.tables import (
     ResultTable,
@@ -20,6 +20,7 @@ from sigmarl.report.tables import (
     to_latex,
     to_markdown,
 )
+from sigmarl.report.training import paper_last_rewards, training_markdown, training_summary
 
 # Fixed formatting of every CSV's floats: the same rows give byte-identical files.
 FLOAT_FORMAT = "%.10g"
@@ -36,6 +37,7 @@ class Report:
     improvement: pd.DataFrame  # see `scores.improvement`
     aggregates: pd.DataFrame  # see `scores.aggregate_scores`
     statistics: str  # Markdown of the two frames above
+    training: pd.DataFrame | None = None  # see `training.training_summary` (curves given)
     paths: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
@@ -118,7 +120,8 @@ def build_report(
 
     Writes table.md, table.csv, summary.csv, composite_scores.csv (with CS intervals),
     improvement.csv and aggregate_scores.csv with statistics.md (`sigmarl.report.scores`),
-    table.tex (latex), distributions.png and training_curves.png (figures; curves given).
+    table.tex (latex), training.csv and training.md (curves given; `sigmarl.report.training`),
+    distributions.png and training_curves.png (figures; curves given).
     """
     rows = validate_rows(rows)
     models = model_order(rows, models)
@@ -154,6 +157,14 @@ def build_report(
     for key, frame in [("csv", to_csv_frame(table)), ("summary", summary), ("composite", composite),
                        ("improvement", better), ("aggregates", aggregates)]:
         frame.to_csv(paths[key], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    training = None
+    if curves is not None and len(curves):
+        training = training_summary(curves, models)
+        last = paper_last_rewards(paper_curves()) if compare_paper else None
+        paths["training"] = out_dir / "training.csv"
+        paths["training_md"] = out_dir / "training.md"
+        training.to_csv(paths["training"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        paths["training_md"].write_text(training_markdown(training, last), encoding="utf-8")
     if latex:
         paths["latex"] = out_dir / "table.tex"
         paths["latex"].write_text(to_latex(table, ci=ci), encoding="utf-8")
@@ -166,10 +177,8 @@ def build_report(
             rows[rows["model"].isin(models)], models, scenarios, out_dir / "distributions.png"
         )
         if curves is not None and len(curves):
-            from sigmarl.report.paper import paper_curves
-
             paths["training_curves"] = plot_training_curves(
                 curves, out_dir / "training_curves.png", models,
                 paper=paper_curves() if compare_paper else None,
             )
-    return Report(markdown, table, summary, composite, better, aggregates, statistics, paths, notes)
+    return Report(markdown, table, summary, composite, better, aggregates, statistics, training, paths, notes)

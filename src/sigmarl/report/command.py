@@ -71,7 +71,7 @@ def make_report_from_folder(
     root = Path(root)
     results = read_results(root)
     out_dir = out_dir or Path("reports") / root.resolve().name
-    curves = results.curves if figures and len(results.curves) else None
+    curves = results.curves if len(results.curves) else None  # read anyway: training.md needs them
     client = connect(cfg) if cfg.tracking.enabled else None  # checked before any work
     options = dict(models=models, trim=trim, compare_paper=compare_paper, latex=latex, ci=ci,
                    figures=figures, animation_steps=animation_steps)

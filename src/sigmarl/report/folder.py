@@ -27,6 +27,8 @@ from sigmarl.errors import SigmarlError
 
 METRICS_FILE = "metrics.csv"
 REWARD = "episode_reward_mean"
+# per-iteration phase timings; their sum is the iteration's compute time
+TIMES = ("time_collect_s", "time_advantage_s", "time_optimise_s")
 _SEED_DIR = re.compile(r"seed(-?\d+)")
 _LABEL = re.compile(r"M\d+|custom-[0-9a-f]+")
 
@@ -41,7 +43,7 @@ class RunFolder:
 @dataclass
 class FolderResults:
     rows: pd.DataFrame
-    curves: pd.DataFrame  # model, seed, iteration, reward
+    curves: pd.DataFrame  # model, seed, iteration, reward, seconds
     runs: list[RunFolder]
     notes: list[str] = field(default_factory=list)
 
@@ -93,7 +95,8 @@ def _rows_of(run: RunFolder) -> pd.DataFrame:
 
 
 def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | None]:
-    """(model, seed, iteration, reward) from metrics.csv, or a note why there is none."""
+    """(model, seed, iteration, reward, seconds) from metrics.csv, or a note why there is none.
+    seconds: the iteration's compute time (NaN where metrics.csv has no timings)."""
     path = run.path / METRICS_FILE
     if not path.is_file():
         return None, None
@@ -105,6 +108,8 @@ def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | No
     metrics = metrics.drop_duplicates("iteration", keep="last").sort_values("iteration", kind="stable")
     curve = pd.DataFrame({"model": model, "seed": run.seed, "iteration": metrics["iteration"].to_numpy(),
                           "reward": metrics[REWARD].to_numpy()})
+    times = [c for c in TIMES if c in metrics.columns]
+    curve["seconds"] = metrics[times].sum(axis=1).to_numpy() if times else float("nan")
     return curve, None
 
 
@@ -149,7 +154,7 @@ def read_results(root: Path) -> FolderResults:
         raise SigmarlError(f"no {ROWS_FILE} under {root}: nothing evaluated to report on")
     rows = pd.concat(frames, ignore_index=True)
     curve_frame = (pd.concat(curves, ignore_index=True) if curves
-                   else pd.DataFrame(columns=["model", "seed", "iteration", "reward"]))
+                   else pd.DataFrame(columns=["model", "seed", "iteration", "reward", "seconds"]))
     return FolderResults(rows, curve_frame, runs, notes)
 
 

@@ -124,18 +124,35 @@ def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
+TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")  # an iteration's compute, summed
+
+
+def _last_per_step(client, run_id: str, metric: str) -> dict[int, float]:
+    history = sorted(client.get_metric_history(run_id, metric), key=lambda m: m.timestamp)
+    return {m.step: m.value for m in history}
+
+
 def load_training_curves(client, experiment: str, metric: str = "episode_reward_mean") -> pd.DataFrame:
-    """(model, seed, iteration, reward) for the experiment's training runs."""
+    """(model, seed, iteration, reward, seconds) for the experiment's training runs; seconds:
+    the iteration's compute time (NaN where the run logged no timings)."""
+    columns = ["model", "seed", "iteration", "reward", "seconds"]
     exp_id = experiment_id(client, experiment)
     if exp_id is None:
-        return pd.DataFrame(columns=["model", "seed", "iteration", "reward"])
+        return pd.DataFrame(columns=columns)
     runs = client.search_runs([exp_id], filter_string="tags.kind = 'training'")
-    rows = []
+    frames = []
     for run in runs:
-        for m in client.get_metric_history(run.info.run_id, metric):
-            rows.append({"model": run.data.tags.get("model"), "seed": run.data.tags.get("seed"),
-                         "iteration": m.step, "reward": m.value})
-    return pd.DataFrame(rows, columns=["model", "seed", "iteration", "reward"])
+        # a resumed run may log a step twice: the last value counts, as in a folder's metrics.csv
+        reward = _last_per_step(client, run.info.run_id, metric)
+        seconds: dict[int, float] = {}
+        for name in TIMINGS:
+            for step, value in _last_per_step(client, run.info.run_id, name).items():
+                seconds[step] = seconds.get(step, 0.0) + value
+        steps = sorted(reward)
+        frames.append(pd.DataFrame({"model": run.data.tags.get("model"), "seed": run.data.tags.get("seed"),
+                                    "iteration": steps, "reward": [reward[s] for s in steps],
+                                    "seconds": [seconds.get(s, float("nan")) for s in steps]}))
+    return pd.concat(frames, ignore_index=True)[columns] if frames else pd.DataFrame(columns=columns)
 
 
 def evaluated_checkpoint(client, experiment: str, model: str) -> Path | None:

@@ -1,0 +1,67 @@
+"""Training curves -> per-seed summary: iterations, compute time, final and best reward.
+
+The paper's Fig. 5 is one seed per model; its value here is the mean reward over the same
+last iterations of its curve, so the two columns compare like with like.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+LAST = 25  # iterations averaged for the "final" reward (the curves are noisy per iteration)
+COLUMNS = ["model", "seed", "iterations", "compute_min", "reward_last", "reward_best"]
+
+
+def training_summary(curves: pd.DataFrame, models: list[str]) -> pd.DataFrame:
+    """One row per (model, seed) of `curves` (model, seed, iteration, reward[, seconds]).
+
+    compute_min: the summed per-iteration compute time (collection, advantages, optimisation;
+    NaN where the curves do not carry it); reward_last: mean reward of the last LAST iterations;
+    reward_best: the best iteration's reward.
+    """
+    rows = []
+    for model in models:
+        c = curves[curves["model"].astype(str) == model]
+        if "seed" not in c.columns:
+            c = c.assign(seed=0)
+        for seed, g in c.groupby("seed", sort=True):
+            g = g.sort_values("iteration", kind="stable")
+            seconds = g["seconds"].sum(min_count=1) if "seconds" in g.columns else float("nan")
+            rows.append({"model": model, "seed": int(seed), "iterations": int(g["iteration"].max()),
+                         "compute_min": seconds / 60, "reward_last": g["reward"].tail(LAST).mean(),
+                         "reward_best": g["reward"].max()})
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def paper_last_rewards(paper: pd.DataFrame) -> dict[str, float]:
+    """The paper's Fig. 5 curves (model, iteration, reward) -> mean of their last LAST iterations."""
+    return {str(m): g.sort_values("iteration")["reward"].tail(LAST).mean() for m, g in paper.groupby("model")}
+
+
+def training_markdown(summary: pd.DataFrame, paper_last: dict[str, float] | None = None) -> str:
+    """Per model: each seed's final reward, iterations and compute time, and the totals."""
+    paper_col = paper_last is not None
+    lines = [
+        f"Training per model (seeds in order; reward: mean episode reward of the last {LAST} iterations"
+        + (", the paper's Fig. 5 in parentheses" if paper_col else "") + "):",
+        "",
+        "| Model | seeds | reward per seed | mean reward | iterations | compute (min) per seed |",
+        "|---|---:|---|---:|---|---|",
+    ]
+    for model, g in summary.groupby("model", sort=False):
+        mean = f"{g['reward_last'].mean():.2f}"
+        if paper_col and model in paper_last:
+            mean += f" ({paper_last[model]:.2f})"
+        lines.append(
+            f"| {model} | {len(g)} | {' / '.join(f'{r:.2f}' for r in g['reward_last'])} | {mean} | "
+            f"{' / '.join(str(i) for i in g['iterations'])} | "
+            f"{' / '.join('–' if pd.isna(t) else f'{t:.0f}' for t in g['compute_min'])} |"
+        )
+    total = summary["compute_min"].sum(min_count=1)
+    if pd.notna(total):
+        lines += [
+            "",
+            f"Training compute of the {len(summary)} model-seeds: {total / 60:.1f} h, summed over their "
+            "iterations (collection, advantages and optimisation, as each run timed itself).",
+        ]
+    return "\n".join(lines) + "\n"
