@@ -27,6 +27,7 @@ import pandas as pd
 from sigmarl.errors import SigmarlError
 from sigmarl.report import bootstrap as bs
 from sigmarl.report.build import build_report
+from sigmarl.report.command import publish, staged
 from sigmarl.report.folder import read_results
 
 
@@ -99,8 +100,11 @@ def main(argv: list[str] | None = None) -> int:
         rows = pd.concat([r for r, _ in parts], ignore_index=True)
         curves = pd.concat([c for _, c in parts], ignore_index=True)
         order = [f"{m} {tag}" for m in models for tag, _ in sides]
-        report = build_report(rows, order, out_dir=Path(args.out), ci=True, figures=not args.no_figures,
-                              curves=curves if len(curves) else None)
+        out = Path(args.out)
+        with staged(out) as staging:  # files appear in `out` only once all are written
+            report = build_report(rows, order, out_dir=staging, ci=True, figures=not args.no_figures,
+                                  curves=curves if len(curves) else None)
+            publish(report, staging, out)
     except SigmarlError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -87,7 +87,7 @@ def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[],
            models, trim, compare_paper, latex, ci, figures, animation_steps, extra_notes=()) -> Report:
     """Tables, figures, the scenarios' maps and M0's animations, drawn into a staging folder and
     moved into out_dir only when all are complete."""
-    with _staged(out_dir) as staging:
+    with staged(out_dir) as staging:
         report = build_report(rows, models, out_dir=staging, trim=trim, compare_paper=compare_paper,
                               latex=latex, curves=curves, ci=ci, figures=figures,
                               extra_notes=list(extra_notes))
@@ -96,7 +96,7 @@ def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[],
             _add_maps(report, staging, known)
         if animation_steps > 0:
             report.paths.update(_animations(m0_checkpoint(), cfg, staging, animation_steps, known))
-        _publish(report, staging, out_dir)
+        publish(report, staging, out_dir)
     return report
 
 
@@ -112,7 +112,7 @@ def _folder_checkpoint(results, root: Path, cfg: Config) -> Path:
 
 
 @contextmanager
-def _staged(out_dir: Path) -> Iterator[Path]:
+def staged(out_dir: Path) -> Iterator[Path]:
     """A staging folder inside `out_dir` for the report's files, removed afterwards: files are
     moved in only when all are complete, so a report killed half-way (Ctrl-C, SIGTERM) leaves
     the previous files, never a half-written one."""
@@ -124,7 +124,7 @@ def _staged(out_dir: Path) -> Iterator[Path]:
         shutil.rmtree(staging, ignore_errors=True)
 
 
-def _publish(report: Report, staging: Path, out_dir: Path) -> None:
+def publish(report: Report, staging: Path, out_dir: Path) -> None:
     paths = {}
     for key, path in report.paths.items():
         target = out_dir / Path(path).relative_to(staging)
