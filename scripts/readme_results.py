@@ -11,6 +11,7 @@ tests/test_readme_results.py checks that they still are. Run after committing ne
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -48,7 +49,21 @@ def readme_block(text: str, name: str) -> tuple[int, int]:
     return start, text.index(end_marker, start)
 
 
+def warn_uncommitted() -> None:
+    """The blocks name unfinished run folders; ones git does not hold yet make a README that a
+    clean clone does not rebuild (tests/test_readme_results.py then fails there)."""
+    try:
+        out = subprocess.run(["git", "status", "--porcelain", "--", STUDY], cwd=ROOT, capture_output=True,
+                             text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return
+    if out.strip():
+        print(f"warning: {STUDY} has {len(out.splitlines())} uncommitted change(s); commit them with the "
+              "README, or a clean clone's README test fails", file=sys.stderr)
+
+
 def main() -> None:
+    warn_uncommitted()
     text = README.read_text(encoding="utf-8")
     for name, content in report_files().items():
         start, end = readme_block(text, name)

@@ -101,7 +101,12 @@ def test_an_interrupted_job_is_unfinished_not_failed(tmp_path):
             time.sleep(0.05)
         os.kill(os.getpid(), signal.SIGINT)
 
-    threading.Thread(target=interrupt, daemon=True).start()
-    with pytest.raises(KeyboardInterrupt):
-        run_job(cfg)
+    # Python leaves SIGINT ignored when it starts ignored (a shell's `cmd &`): Ctrl-C's own handler
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Thread(target=interrupt, daemon=True).start()
+        with pytest.raises(KeyboardInterrupt):
+            run_job(cfg)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert (run / "checkpoint.pt").exists() and not (run / FAILED_FILE).exists()
