@@ -54,6 +54,8 @@ PAPER_SCENARIOS = ("CPM", "Intersection", "On-Ramp", "Roundabout")  # Table I, t
 # them (protocol key, checkpoint hash, environment rules revision).
 ROWS_FILE = "evaluation_rows.csv"
 ROWS_META = "evaluation.json"
+# a training iteration's timed phases (metrics.csv columns and MLflow metrics); their sum is its compute time
+TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")
 
 # Columns of one evaluation row: one (model, seed, scenario, simulation); `obs` lists the
 # strategies that were on (e.g. "V,DA,DB,DC" for M1).

@@ -21,14 +21,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.ablation import MODELS, ROWS_FILE, ROWS_META
+from sigmarl.ablation import MODELS, ROWS_FILE, ROWS_META, TIMINGS
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 
 METRICS_FILE = "metrics.csv"
 REWARD = "episode_reward_mean"
-# per-iteration phase timings; their sum is the iteration's compute time
-TIMES = ("time_collect_s", "time_advantage_s", "time_optimise_s")
 _SEED_DIR = re.compile(r"seed(-?\d+)")
 _LABEL = re.compile(r"M\d+|custom-[0-9a-f]+")
 
@@ -108,7 +106,7 @@ def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | No
     metrics = metrics.drop_duplicates("iteration", keep="last").sort_values("iteration", kind="stable")
     curve = pd.DataFrame({"model": model, "seed": run.seed, "iteration": metrics["iteration"].to_numpy(),
                           "reward": metrics[REWARD].to_numpy()})
-    times = [c for c in TIMES if c in metrics.columns]
+    times = [c for c in TIMINGS if c in metrics.columns]
     curve["seconds"] = metrics[times].sum(axis=1).to_numpy() if times else float("nan")
     return curve, None
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl import crash
-from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS
+from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS, TIMINGS
 from sigmarl.config import EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError, was_interrupted
@@ -122,9 +122,6 @@ def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
             "or `sigmarl evaluate <run>` first"
         )
     return pd.concat(frames, ignore_index=True)
-
-
-TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")  # an iteration's compute, summed
 
 
 def _last_per_step(client, run_id: str, metric: str) -> dict[int, float]:
