@@ -218,6 +218,60 @@ def test_sigterm_ends_the_training_run_killed(tmp_path: Path) -> None:
     assert run.info.status == "KILLED"
 
 
+@contextmanager
+def _cli_signal_handlers(sigint=None):
+    """The CLI's handlers for the test's duration (SIGINT first set to `sigint` if given)."""
+    from sigmarl import errors
+    from sigmarl.cli import handle_sigterm
+
+    previous = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
+    terminating = errors._terminating
+    try:
+        if sigint is not None:
+            signal.signal(signal.SIGINT, sigint)
+        handle_sigterm()
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous[0])
+        signal.signal(signal.SIGINT, previous[1])
+        errors._terminating = terminating
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_signal_inside_held_signals_is_raised_when_the_block_ends(signum) -> None:
+    from sigmarl.errors import Terminated, held_signals
+
+    expected = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+    ran = []
+    with _cli_signal_handlers(signal.default_int_handler), pytest.raises(expected) as caught:
+        with held_signals():
+            os.kill(os.getpid(), signum)
+            ran.append("rest of the block")
+        ran.append("after the block")
+    assert ran == ["rest of the block"]
+    assert (caught.type is Terminated) == (signum == signal.SIGTERM)
+
+
+def test_a_second_signal_inside_held_signals_raises_at_once() -> None:
+    from sigmarl.errors import Terminated, held_signals
+
+    ran = []
+    with _cli_signal_handlers(), pytest.raises(Terminated):
+        with held_signals():
+            os.kill(os.getpid(), signal.SIGTERM)
+            ran.append("after the first")
+            os.kill(os.getpid(), signal.SIGTERM)
+            ran.append("after the second")
+    assert ran == ["after the first"]
+
+
+def test_an_ignored_sigint_stays_ignored() -> None:
+    """A job started with SIGINT ignored (a shell's `cmd &`) is not made interruptible by it."""
+    with _cli_signal_handlers(signal.SIG_IGN):
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+        os.kill(os.getpid(), signal.SIGINT)  # nothing happens
+
+
 def sigterm_while_drawing() -> None:
     """Make matplotlib's savefig start its file, then receive SIGTERM (as from `timeout`)."""
     from matplotlib.figure import Figure

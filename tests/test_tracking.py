@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import sys
 from pathlib import Path
 
 import pytest
@@ -77,3 +80,85 @@ def test_unusable_store_is_one_clear_error(uri: str, tmp_path: Path, monkeypatch
     cfg = compose_config([f"tracking.tracking_uri={uri.format(tmp=tmp_path)}"])
     with pytest.raises(SigmarlError, match="MLflow (tracking )?store"):
         Tracker.open(cfg)
+
+
+def _lines_run_by(call) -> int:
+    """How many Python lines `call()` runs (a line tracer's count)."""
+    count = 0
+
+    def trace(frame, event, arg):
+        nonlocal count
+        count += event == "line"
+        return trace
+
+    sys.settrace(trace)
+    try:
+        call()
+    finally:
+        sys.settrace(None)
+    return count
+
+
+def _sigterm_at_line(n: int, call) -> None:
+    """Run `call()`, sending this process SIGTERM when its n-th Python line starts."""
+    count = 0
+
+    def trace(frame, event, arg):
+        nonlocal count
+        if event == "line":
+            count += 1
+            if count == n:  # once: a second SIGTERM would not wait (errors.on_signal)
+                os.kill(os.getpid(), signal.SIGTERM)
+        return trace
+
+    sys.settrace(trace)
+    try:
+        call()
+    finally:
+        sys.settrace(None)
+
+
+def test_a_sigterm_inside_a_store_call_is_raised_when_the_call_has_ended(
+        tmp_path: Path, monkeypatch, capfd) -> None:
+    """SIGTERM at 20 points spread over one `log_batch` call of a training run's client:
+    each time (but at its first line, before the call) the call stores all its metrics,
+    `Terminated` comes when it returns, and the run is then ended KILLED with nothing on stderr.
+    Measured before store calls held signals: a SIGTERM after the call's first INSERT left the
+    SQLite connection holding its write lock, so ending the run waited 20 s for the lock and
+    failed with MLflow's "database is locked" traceback, and the run stayed RUNNING (the flaky
+    `test_sigterm_ends_the_training_run_killed`)."""
+    from mlflow.entities import Metric
+
+    from sigmarl import errors
+    from sigmarl.cli import handle_sigterm
+
+    monkeypatch.setattr(errors, "_terminating", False)
+    previous = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
+    handle_sigterm()
+    try:
+        cfg = compose_config([f"tracking.tracking_uri=sqlite:///{tmp_path}/mlflow.db",
+                              "tracking.experiment=sig"])
+        metrics = [Metric(name, float(step), 0, step) for step in range(1, 6) for name in "ab"]
+
+        def log(tracker: Tracker) -> None:
+            tracker.client.log_batch(tracker.run_id, metrics=metrics)
+
+        log(Tracker.open(cfg))  # warm: the first call also compiles its statements
+        tracker = Tracker.open(cfg)
+        lines = _lines_run_by(lambda: log(tracker))
+        assert lines > 1000  # the tracer sees MLflow's and SQLAlchemy's lines
+        capfd.readouterr()
+        for k in range(20):
+            errors._terminating = False
+            tracker = Tracker.open(cfg)
+            with pytest.raises(errors.Terminated):
+                _sigterm_at_line(1 + lines * k // 20, lambda t=tracker: log(t))
+            tracker.finish("KILLED")
+            client = tracker.client
+            logged = [m.step for m in client.get_metric_history(tracker.run_id, "a")]
+            assert logged == ([] if k == 0 else [1, 2, 3, 4, 5]), k
+            assert client.get_run(tracker.run_id).info.status == "KILLED", k
+            assert capfd.readouterr().err == "", k
+    finally:
+        signal.signal(signal.SIGTERM, previous[0])
+        signal.signal(signal.SIGINT, previous[1])

@@ -9,18 +9,17 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from sigmarl.errors import SigmarlError, Terminated, note_termination, was_interrupted
-
-
-def _terminate(signum, frame) -> None:
-    note_termination()
-    raise Terminated()
+from sigmarl.errors import SigmarlError, Terminated, on_signal, was_interrupted
 
 
 def handle_sigterm() -> None:
-    """Turn SIGTERM into `Terminated` (a KeyboardInterrupt) in this process's main thread."""
+    """Turn SIGTERM into `Terminated` (a KeyboardInterrupt) in this process's main thread, and
+    let both it and Ctrl-C wait for the end of a `held_signals` block. SIGINT is taken over
+    only from Python's default handler: a job started with it ignored (`cmd &`) keeps it so."""
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _terminate)
+        signal.signal(signal.SIGTERM, on_signal)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, on_signal)
 
 
 def _map_names() -> list[str]:

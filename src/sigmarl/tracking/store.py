@@ -15,6 +15,7 @@ minutes of evaluation:
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import sqlite3
@@ -24,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import urlparse
 
-from sigmarl.errors import SigmarlError
+from sigmarl.errors import SigmarlError, held_signals
 
 if TYPE_CHECKING:
     from sigmarl.config import Config
@@ -88,6 +89,27 @@ def connect(cfg: Config, write: bool = True):
                            "if none is running, delete the lock file") from e
 
 
+class SignalSafeClient:
+    """An MlflowClient whose every call runs to its end before Ctrl-C or SIGTERM is raised
+    (`errors.held_signals`): an interruption never tears a store transaction, and whatever
+    the call wrote is whole. Attributes that are not methods pass through."""
+
+    def __init__(self, client) -> None:
+        self._client = client
+
+    def __getattr__(self, name: str):
+        value = getattr(self._client, name)
+        if not callable(value):
+            return value
+
+        @functools.wraps(value)
+        def held(*args, **kwargs):
+            with held_signals():
+                return value(*args, **kwargs)
+
+        return held
+
+
 def _first_line(e: BaseException) -> str:
     text = str(e).strip()
     return (text.splitlines()[0] if text else type(e).__name__)[:300]
@@ -97,7 +119,7 @@ def _open(uri: str):
     from mlflow import MlflowClient
 
     try:
-        client = MlflowClient(tracking_uri=uri)
+        client = SignalSafeClient(MlflowClient(tracking_uri=uri))
         client.search_experiments(max_results=1)
     except Exception as e:  # bad URI, refused connection, HTTP errors after the retries
         raise SigmarlError(
@@ -165,7 +187,7 @@ def _forget_engines(db: Path) -> None:
 def _open_raw(uri: str):
     from mlflow import MlflowClient
 
-    client = MlflowClient(tracking_uri=uri)
+    client = SignalSafeClient(MlflowClient(tracking_uri=uri))
     client.search_experiments(max_results=1)
     return client
 
