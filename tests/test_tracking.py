@@ -82,32 +82,17 @@ def test_unusable_store_is_one_clear_error(uri: str, tmp_path: Path, monkeypatch
         Tracker.open(cfg)
 
 
-def _lines_run_by(call) -> int:
-    """How many Python lines `call()` runs (a line tracer's count)."""
-    count = 0
-
-    def trace(frame, event, arg):
-        nonlocal count
-        count += event == "line"
-        return trace
-
-    sys.settrace(trace)
-    try:
-        call()
-    finally:
-        sys.settrace(None)
-    return count
-
-
-def _sigterm_at_line(n: int, call) -> None:
-    """Run `call()`, sending this process SIGTERM when its n-th Python line starts."""
+def _run_traced(call, sigterm_at: int | None = None) -> int:
+    """Run `call()` under a line tracer; send this process SIGTERM when the `sigterm_at`-th
+    Python line starts (once: a second SIGTERM would not wait, errors.on_signal). Returns the
+    number of lines run."""
     count = 0
 
     def trace(frame, event, arg):
         nonlocal count
         if event == "line":
             count += 1
-            if count == n:  # once: a second SIGTERM would not wait (errors.on_signal)
+            if count == sigterm_at:
                 os.kill(os.getpid(), signal.SIGTERM)
         return trace
 
@@ -116,6 +101,7 @@ def _sigterm_at_line(n: int, call) -> None:
         call()
     finally:
         sys.settrace(None)
+    return count
 
 
 def test_a_sigterm_inside_a_store_call_is_raised_when_the_call_has_ended(
@@ -145,14 +131,14 @@ def test_a_sigterm_inside_a_store_call_is_raised_when_the_call_has_ended(
 
         log(Tracker.open(cfg))  # warm: the first call also compiles its statements
         tracker = Tracker.open(cfg)
-        lines = _lines_run_by(lambda: log(tracker))
+        lines = _run_traced(lambda: log(tracker))
         assert lines > 1000  # the tracer sees MLflow's and SQLAlchemy's lines
         capfd.readouterr()
         for k in range(20):
             errors._terminating = False
             tracker = Tracker.open(cfg)
             with pytest.raises(errors.Terminated):
-                _sigterm_at_line(1 + lines * k // 20, lambda t=tracker: log(t))
+                _run_traced(lambda t=tracker: log(t), sigterm_at=1 + lines * k // 20)
             tracker.finish("KILLED")
             client = tracker.client
             logged = [m.step for m in client.get_metric_history(tracker.run_id, "a")]
