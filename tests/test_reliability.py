@@ -265,6 +265,30 @@ def test_a_second_signal_inside_held_signals_raises_at_once() -> None:
     assert ran == ["after the first"]
 
 
+def test_a_block_in_another_thread_does_not_hold_the_main_threads_signal() -> None:
+    """Only the main thread receives signals: a store call in a worker thread must not delay
+    (nor receive) the main thread's interruption."""
+    from sigmarl.errors import Terminated, held_signals
+
+    inside, release = threading.Event(), threading.Event()
+
+    def worker() -> None:
+        with held_signals():
+            inside.set()
+            release.wait(10)
+
+    thread = threading.Thread(target=worker)
+    thread.start()
+    try:
+        inside.wait(10)
+        with _cli_signal_handlers(), pytest.raises(Terminated):
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1)  # the handler raises here, not when the worker's block ends
+    finally:
+        release.set()
+        thread.join()
+
+
 def test_an_ignored_sigint_stays_ignored() -> None:
     """A job started with SIGINT ignored (a shell's `cmd &`) is not made interruptible by it."""
     with _cli_signal_handlers(signal.SIG_IGN):

@@ -2,6 +2,7 @@
 an interruption (Ctrl-C, SIGTERM) reaches the code."""
 
 import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -50,9 +51,13 @@ def on_signal(signum: int, frame: object) -> None:
 def held_signals() -> Iterator[None]:
     """Let a block finish before an interruption is raised. A signal that raised inside an
     MLflow store transaction left the SQLite connection holding its write lock (measured: a
-    SIGTERM at one of ~3,600 lines of `log_batch`), so the run could not be ended KILLED and
-    MLflow printed the "database is locked" traceback."""
+    SIGTERM anywhere after the first INSERT of a `log_batch`), so the run could not be ended
+    KILLED and MLflow printed the "database is locked" traceback. Signals reach the main thread
+    only, so only its blocks hold them."""
     global _holding, _pending
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     _holding += 1
     try:
         yield
