@@ -20,14 +20,9 @@ class Terminated(KeyboardInterrupt):
     interruption (a run ended KILLED, a half-written file removed) handles it too."""
 
 
-_terminating = False  # set by the SIGTERM handler (cli.handle_sigterm) before it raises
+_terminating = False  # set by the SIGTERM handler (on_signal) before it raises
 _holding = 0  # depth of `held_signals` blocks
 _pending: int | None = None  # a signal that arrived inside one, raised when the block ends
-
-
-def note_termination() -> None:
-    global _terminating
-    _terminating = True
 
 
 def _interruption(signum: int) -> KeyboardInterrupt:
@@ -38,9 +33,9 @@ def on_signal(signum: int, frame: object) -> None:
     """The handler of SIGTERM (and of SIGINT where Python's default one was in place): raise
     the interruption now, or at the end of the `held_signals` block that is running. A second
     signal inside the block raises at once: a stuck call still yields to a repeated kill."""
-    global _pending
+    global _pending, _terminating
     if signum == signal.SIGTERM:
-        note_termination()
+        _terminating = True
     if _holding and _pending is None:
         _pending = signum
         return
