@@ -17,10 +17,11 @@ import pandas as pd
 import torch
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from sigmarl.ablation import SCENARIOS
 from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
+from sigmarl.scenarios import scenario as scenario_of
+from sigmarl.scenarios import scenario_names
 from sigmarl.training.checkpoint import config_of
 from sigmarl.training.loop import load_policy
 
@@ -38,7 +39,7 @@ def curvature(bank, route: torch.Tensor, index: torch.Tensor, span: int = 3) -> 
 @torch.no_grad()
 def contacts(checkpoint: Path, scenario: str, n_sims: int, steps: int, seed: int,
              noise: float | None = None) -> pd.DataFrame:
-    n_agents = SCENARIOS[scenario][1]
+    n_agents = scenario_of(scenario).n_agents
     actor, state = load_policy(checkpoint, n_agents=n_agents)
     cfg = config_of(state, checkpoint)
     if noise is not None:
@@ -107,7 +108,7 @@ def summary(ev: pd.DataFrame, n_sims: int, steps: int, n_agents: int) -> str:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("checkpoint", type=Path)
-    p.add_argument("--scenario", default="CPM", choices=list(SCENARIOS))
+    p.add_argument("--scenario", default="CPM", choices=scenario_names())
     p.add_argument("--sims", type=int, default=32)
     p.add_argument("--steps", type=int, default=1200)
     p.add_argument("--seed", type=int, default=2024)
@@ -119,7 +120,7 @@ def main() -> None:
         ev = contacts(a.checkpoint, a.scenario, a.sims, a.steps, a.seed, a.noise)
     except SigmarlError as e:  # a missing or broken checkpoint, an unknown scenario
         sys.exit(f"lane_contacts: error: {e}")
-    print(summary(ev, a.sims, a.steps, SCENARIOS[a.scenario][1]))
+    print(summary(ev, a.sims, a.steps, scenario_of(a.scenario).n_agents))
     if a.out:
         ev.to_csv(a.out, index=False)
 

@@ -7,33 +7,34 @@ import pytest
 from sigmarl.cli import main
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
-from sigmarl.sweep import FAILED_FILE, run_job, sweep_overrides
+from sigmarl.sweep import FAILED_FILE, plan_sweep, run_job
 
 
 def test_sweep_defaults_cover_the_six_models_with_one_job_per_core():
-    out = sweep_overrides([], cores=2)
-    assert "obs=full,no_ego_view,no_vertices,no_distance_to_agents,no_distance_to_boundaries,no_distance_to_center_line" in out
-    assert "seed=0" in out and "hydra/launcher=joblib" in out
-    assert "hydra.launcher.n_jobs=2" in out
-    assert not any(o.startswith("threads=") for o in out)  # each job sets it from its grant
+    plan = plan_sweep(["tracking.enabled=false"], cores=2)
+    assert plan.labels == ["M0", "M1", "M2", "M3", "M4", "M5"]
+    assert [j.variant for j in plan.jobs][:2] == [["obs=full"], ["obs=no_ego_view"]]
+    assert {j.seed for j in plan.jobs} == {0}
+    assert "hydra/launcher=joblib" in plan.hydra and "hydra.launcher.n_jobs=2" in plan.hydra
+    assert not any(o.startswith("threads=") for j in plan.jobs for o in j.overrides)  # set from its grant
 
 
 def test_sweep_shorthands():
-    out = sweep_overrides(["models=[M0,M4]", "seeds=[0,1,2]"], cores=16)
-    assert "obs=full,no_distance_to_boundaries" in out and "seed=0,1,2" in out
-    # 6 jobs on 16 cores: all at once
-    assert "hydra.launcher.n_jobs=6" in out
+    plan = plan_sweep(["models=[M0,M4]", "seeds=[0,1,2]", "tracking.enabled=false"], cores=16)
+    assert [j.key for j in plan.jobs] == [f"{m}/seed{s}" for m in ("M0", "M4") for s in (0, 1, 2)]
+    assert "hydra.launcher.n_jobs=6" in plan.hydra  # 6 jobs on 16 cores: all at once
     # the user's own choices win
-    out = sweep_overrides(["hydra.launcher.n_jobs=1", "threads=4"], cores=2)
-    assert "hydra.launcher.n_jobs=1" in out and out.count("threads=4") == 1
+    plan = plan_sweep(["hydra.launcher.n_jobs=1", "threads=4", "tracking.enabled=false"], cores=2)
+    assert plan.hydra == ["hydra.launcher.n_jobs=1", "hydra/launcher=joblib"]
+    assert all(j.overrides.count("threads=4") == 1 for j in plan.jobs)
     # another launcher gets no joblib settings
-    out = sweep_overrides(["hydra/launcher=slurm"], cores=2)
-    assert not any(o.startswith("hydra.launcher.n_jobs") for o in out)
+    plan = plan_sweep(["hydra/launcher=slurm", "tracking.enabled=false"], cores=2)
+    assert plan.hydra == ["hydra/launcher=slurm"]
 
 
 def test_sweep_unknown_model():
     with pytest.raises(SigmarlError, match="unknown model"):
-        sweep_overrides(["models=[M9]"])
+        plan_sweep(["models=[M9]"])
 
 
 def test_sweep_over_unknown_preset_exits_2(tmp_path, monkeypatch, capsys):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from sigmarl.ablation import SCENARIOS
+from sigmarl.scenarios import scenario_names
 from sigmarl.compose import compose_config, scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
@@ -30,7 +30,7 @@ def cfg():
     return compose_config([])
 
 
-@pytest.mark.parametrize("scenario", list(SCENARIOS))
+@pytest.mark.parametrize("scenario", scenario_names())
 def test_standing_still_scores_zero(cfg, scenario):
     # Vehicles spawn on their center line, at least 0.2147 m apart, inside their lane:
     # standing still they never collide, deviate or move.

@@ -17,7 +17,7 @@ import pytest
 import torch
 from shapely.geometry import LineString, Point, Polygon
 
-from sigmarl.ablation import PAPER_SCENARIOS, SCENARIOS
+from sigmarl.scenarios import PAPER_SCENARIOS, scenario, scenario_names
 from sigmarl.compose import compose_config
 from sigmarl.env.spawn import MIN_GAP
 from sigmarl.maps import load_map
@@ -151,13 +151,15 @@ def test_study_scenarios_are_the_papers_maps():
     assert PAPER_SCENARIOS == ("CPM", "Intersection", "On-Ramp", "Roundabout")
     assert compose_config([]).eval.scenarios == list(PAPER_SCENARIOS)
     for key, name in PAPER_MAPS.items():
-        assert SCENARIOS[TABLE_I_NAMES[key]] == (name, FACTS[key]["n_agents"])
+        s = scenario(TABLE_I_NAMES[key])
+        assert (s.map, s.n_agents, s.paper) == (name, FACTS[key]["n_agents"], True)
     assert [FACTS[k]["n_agents"] for k in PAPER_MAPS] == [6, 8, 8]
     # The procedural builders stay, under names that do not look like Table I's.
-    procedural = {s: v for s, v in SCENARIOS.items() if s not in PAPER_SCENARIOS}
+    procedural = {s: (scenario(s).map, scenario(s).n_agents) for s in scenario_names() if s.startswith("Proc-")}
     assert procedural == {"Proc-Intersection": ("intersection", 6), "Proc-On-Ramp": ("on_ramp", 8),
                           "Proc-Roundabout": ("roundabout", 8)}
-    assert compose_config(["study=extended"]).eval.scenarios == list(SCENARIOS)
+    assert not any(scenario(s).paper for s in procedural)
+    assert compose_config(["study=extended"]).eval.scenarios == [*PAPER_SCENARIOS, *procedural]
 
 
 @pytest.mark.parametrize("key", list(PAPER_MAPS))
@@ -189,14 +191,20 @@ def test_env_spawns_the_papers_agent_counts(env_factory, key):
     assert torch.isfinite(sc.pos).all()
 
 
-def test_evaluation_key_names_the_maps(monkeypatch):
+def test_evaluation_key_names_the_maps(monkeypatch, tmp_path):
     """Rows evaluated under Table I's names on other maps (the procedural ones, before the
-    paper's maps existed) are never taken for the paper's: the evaluation key holds the maps."""
+    paper's maps existed, or a user's file of the same name) are never taken for the paper's:
+    the evaluation key holds the maps."""
     from sigmarl.tracking import records
 
     eval_cfg = compose_config([]).eval
     key = records.eval_key(eval_cfg)
-    monkeypatch.setitem(SCENARIOS, "Intersection", ("intersection", 6))
+    (tmp_path / "scenario").mkdir()
+    shadow = tmp_path / "scenario" / "Intersection.yaml"
+    shadow.write_text("map: intersection\nn_agents: 6\n")
+    monkeypatch.setenv("SIGMARL_CONFIG_PATH", str(tmp_path))
+    assert scenario("Intersection").map == "intersection"
     assert records.eval_key(eval_cfg) != key
-    monkeypatch.setitem(SCENARIOS, "Intersection", ("paper_intersection", 6))
+    shadow.write_text("map: paper_intersection\nn_agents: 6\n")
+    monkeypatch.setenv("SIGMARL_CONFIG_PATH", str(tmp_path / "scenario"))  # a folder without scenario/
     assert records.eval_key(eval_cfg) == key

@@ -309,7 +309,7 @@ def sigterm_while_drawing() -> None:
 
 def _store_with_evaluations(folder: Path, experiment: str) -> str:
     """A store holding evaluation runs of M0 and M1 (hand-made rows); returns its URI."""
-    from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS
+    from sigmarl.metrics import METRIC_COLUMNS
     from sigmarl.tracking import experiment_id, records
 
     uri = f"sqlite:///{folder}/mlflow.db"

@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 from mlflow import MlflowClient
 
-from sigmarl.ablation import METRIC_COLUMNS, PAPER_SCENARIOS
+from sigmarl.metrics import METRIC_COLUMNS
+from sigmarl.scenarios import PAPER_SCENARIOS
 from sigmarl.cli import main
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.report.folder import read_results

@@ -6,7 +6,9 @@ import pandas as pd
 import pytest
 from mlflow import MlflowClient
 
-from sigmarl.ablation import METRIC_COLUMNS, MODELS, PAPER_SCENARIOS
+from sigmarl.ablation import MODELS
+from sigmarl.metrics import METRIC_COLUMNS
+from sigmarl.scenarios import PAPER_SCENARIOS
 from sigmarl.cli import main
 
 pytestmark = pytest.mark.slow

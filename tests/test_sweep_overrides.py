@@ -1,5 +1,6 @@
 """`sigmarl sweep` overrides read by Hydra's own parser: list values, range(), quoted strings,
-the models=/seeds= shorthands, and evaluation settings checked before anything trains."""
+the models=/seeds= shorthands, sweeps over any key, and every job's config checked before
+anything trains."""
 
 from __future__ import annotations
 
@@ -10,70 +11,69 @@ import torch
 from sigmarl.cli import main
 from sigmarl.errors import SigmarlError
 from sigmarl.resources import granted_threads
-from sigmarl.sweep import _fixed, _jobs, _prepare_store, summarise, sweep_overrides
-
-ALL_PRESETS = ("obs=full,no_ego_view,no_vertices,no_distance_to_agents,no_distance_to_boundaries,"
-               "no_distance_to_center_line")
+from sigmarl.sweep import plan_sweep, summarise
 
 
-def launcher(out: list[str], cores: int) -> tuple[int, int]:
+def launcher(plan, cores: int) -> tuple[int, int]:
     """(hydra.launcher.n_jobs the sweep chose, threads each joblib job takes on `cores`)."""
-    get = {o.split("=", 1)[0]: o.split("=", 1)[1] for o in out}
-    assert "threads" not in get  # set in each job from its grant
+    get = dict(o.split("=", 1) for o in plan.hydra)
     n_jobs = int(get["hydra.launcher.n_jobs"])
     return n_jobs, granted_threads({"n_jobs": n_jobs}, {}, cores=cores)
 
 
 def test_list_values_are_plain_values_not_sweeps():
     user = ["eval.scenarios=[CPM,Roundabout]", "network.hidden=[128,128]"]
-    out = sweep_overrides(user, cores=2)
-    assert out[:2] == user and ALL_PRESETS in out
-    assert launcher(out, 2) == (2, 1)  # 6 jobs (the models), not 6 x 2 x 2
-    assert _fixed(out) == [*user, "seed=0"]
-    jobs = _jobs(out)
-    assert len(jobs) == 6 and all(len(j) == 1 and j[0].startswith("obs=") for j in jobs)
+    plan = plan_sweep([*user, "tracking.enabled=false"], cores=2)
+    assert plan.fixed[:2] == user
+    assert launcher(plan, 2) == (2, 1)  # 6 jobs (the models), not 6 x 2 x 2
+    assert len(plan.jobs) == 6 and all(j.overrides[:2] == user for j in plan.jobs)
 
 
 @pytest.mark.parametrize(("seeds", "values"), [
-    ("seed=range(3)", ["0", "1", "2"]),
-    ("seed=range(2,8,3)", ["2", "5"]),
-    ("seed=0,1,2,3", ["0", "1", "2", "3"]),
-    ("seeds=range(1,4)", ["1", "2", "3"]),
-    ("seeds=[0,1,2]", ["0", "1", "2"]),
-    ("seeds=7", ["7"]),
+    ("seed=range(3)", [0, 1, 2]),
+    ("seed=range(2,8,3)", [2, 5]),
+    ("seed=0,1,2,3", [0, 1, 2, 3]),
+    ("seeds=range(1,4)", [1, 2, 3]),
+    ("seeds=[0,1,2]", [0, 1, 2]),
+    ("seeds=7", [7]),
 ])
 def test_seed_sweeps_count_their_jobs(seeds, values):
-    out = sweep_overrides([seeds], cores=64)
+    plan = plan_sweep([seeds, "tracking.enabled=false"], cores=64)
     n = 6 * len(values)
-    assert launcher(out, 64) == (n, 64 // n)
-    jobs = [dict(o.split("=", 1) for o in job) for job in _jobs(out)]
-    seeds_of_jobs = [j.get("seed") for j in jobs]
-    if len(values) == 1:  # a single seed is a plain value, the same for every job
-        assert set(seeds_of_jobs) == {None} and f"seed={values[0]}" in _fixed(out)
-    else:
-        assert sorted(set(seeds_of_jobs)) == sorted(values)
-    assert len({(j["obs"], j.get("seed")) for j in jobs}) == len(jobs) == n
+    assert launcher(plan, 64) == (n, 64 // n)
+    assert sorted({j.seed for j in plan.jobs}) == values
+    assert len({j.key for j in plan.jobs}) == len(plan.jobs) == n
+    assert all(f"seed={j.seed}" in j.overrides for j in plan.jobs)
 
 
 def test_models_shorthand_list_scalar_and_range_of_seeds():
-    out = sweep_overrides(["models=[M0,M4]", "seeds=range(3)"], cores=16)
-    assert "obs=full,no_distance_to_boundaries" in out and "seed=0,1,2" in out
-    assert launcher(out, 16) == (6, 2)
-    out = sweep_overrides(["models=M1"], cores=4)
-    assert "obs=no_ego_view" in out and launcher(out, 4) == (1, 4)
+    plan = plan_sweep(["models=[M0,M4]", "seeds=range(3)", "tracking.enabled=false"], cores=16)
+    assert plan.labels == ["M0", "M4"] and launcher(plan, 16) == (6, 2)
+    plan = plan_sweep(["models=M1", "tracking.enabled=false"], cores=4)
+    assert plan.labels == ["M1"] and plan.jobs[0].variant == ["obs=no_ego_view"] and launcher(plan, 4) == (1, 4)
+
+
+def test_presets_on_the_command_line_are_labelled_from_their_flags():
+    plan = plan_sweep(["seed=3,4", "obs=full,no_distance_to_boundaries", "tracking.enabled=false"], cores=2)
+    assert [j.key for j in plan.jobs] == ["M0/seed3", "M0/seed4", "M4/seed3", "M4/seed4"]
 
 
 def test_quoted_strings_keep_their_commas():
-    out = sweep_overrides(["tracking.experiment='a,b'", "models=[M0]"], cores=4)
-    assert "tracking.experiment='a,b'" in _fixed(out) and launcher(out, 4) == (1, 4)
-    # A sweep over quoted values: each value keeps its quotes, so Hydra reads it back whole.
-    out = sweep_overrides(['tracking.experiment="x y",z', "models=[M0]"], cores=4)
-    assert _jobs(out) == [['tracking.experiment="x y"'], ["tracking.experiment=z"]]
+    plan = plan_sweep(["tracking.enabled=false", "tracking.experiment='a,b'", "models=[M0]"], cores=4)
+    assert "tracking.experiment='a,b'" in plan.fixed and launcher(plan, 4) == (1, 4)
+    assert plan.config.tracking.experiment == "a,b"
 
 
-def test_every_swept_key_multiplies_the_jobs():
-    out = sweep_overrides(["ppo.lr=1e-4,2e-4", "models=[M0,M1,M2]"], cores=64)
-    assert launcher(out, 64)[0] == 6 and len(_jobs(out)) == 6
+def test_a_sweep_over_any_key_makes_one_variant_per_value(tmp_path):
+    """The issue's own example: each width becomes a column (a label and a run folder)."""
+    plan = plan_sweep(["study=quick", "models=[M0]", "network.hidden=[64,64],[128,128]",
+                       "tracking.enabled=false", f"runs_root={tmp_path}"], cores=2)
+    assert [j.key for j in plan.jobs] == ["M0_hidden-64-64/seed0", "M0_hidden-128-128/seed0"]
+    assert plan.jobs[0].variant == ["obs=full", "network.hidden=[64,64]"]
+    assert len({j.fingerprint for j in plan.jobs}) == 2
+    assert plan.jobs[1].run_dir == f"{tmp_path}/M0_hidden-128-128/seed0"
+    plan = plan_sweep(["ppo.lr=1e-4,2e-4", "models=[M0,M1,M2]", "tracking.enabled=false"], cores=64)
+    assert len(plan.jobs) == 6 and plan.labels[:2] == ["M0_lr-0.0001", "M0_lr-0.0002"]
 
 
 @pytest.mark.parametrize(("user", "message"), [
@@ -83,16 +83,18 @@ def test_every_swept_key_multiplies_the_jobs():
     (["seeds=[]"], "seeds=[] selects no jobs"),
     (["seed=interval(0,1)"], "a sweep needs discrete values"),
     (["eval.scenarios=[CPM"], "bad override"),
+    (["model=X"], "model is set by the sweep itself"),
+    (["study=widths", "network.hidden=[8,8]"], "network.hidden is set by variant W256"),
 ])
 def test_bad_sweep_overrides(user, message):
     with pytest.raises(SigmarlError, match=message.replace("[", r"\[").replace("]", r"\]")):
-        sweep_overrides(user)
+        plan_sweep([*user, "tracking.enabled=false"])
 
 
 @pytest.mark.parametrize(("override", "message"), [
     ("eval.n_sims=0", "eval.n_sims must be positive, got 0"),
     ("eval.steps=-5", "eval.steps must be positive, got -5"),
-    ("eval.scenarios=[CPM,Nowhere]", "unknown scenario(s) 'Nowhere'; choose from CPM, Intersection"),
+    ("eval.scenarios=[CPM,Nowhere]", "unknown scenario 'Nowhere'; choose from CPM, Intersection"),
     ("eval.scenarios=[]", "eval.scenarios is empty"),
     ("eval.checkpoint=last", "eval.checkpoint must be 'best' or 'final'"),
 ])
@@ -107,28 +109,34 @@ def test_bad_evaluation_settings_end_the_sweep_before_training(tmp_path, monkeyp
 
 
 def test_a_bad_value_inside_a_sweep_is_caught_too(tmp_path):
-    out = sweep_overrides(["eval.n_sims=4,0", "models=[M0]", "tracking.enabled=false",
-                           f"runs_root={tmp_path}/runs"], cores=2)
     with pytest.raises(SigmarlError, match="eval.n_sims must be positive, got 0"):
-        _prepare_store(out)
+        plan_sweep(["eval.n_sims=4,0", "models=[M0]", "tracking.enabled=false", f"runs_root={tmp_path}/runs"])
 
 
-def test_jobs_that_would_share_a_run_folder_are_refused(tmp_path):
-    out = sweep_overrides(["ppo.lr=1e-4,2e-4", "models=[M0]", "tracking.enabled=false",
-                           f"runs_root={tmp_path}/runs"], cores=2)
-    with pytest.raises(SigmarlError, match="would share the run folder"):
-        _prepare_store(out)
+def test_a_run_folder_of_another_config_is_never_reused(tmp_path, capsys):
+    """A lone `sigmarl train` with another network left M0/seed0 behind: the study's M0 is
+    refused before anything trains, naming the difference."""
+    runs = tmp_path / "runs"
+    assert main(["train", "ppo=smoke", "ppo.iterations=1", "network.hidden=[8,8]", "tracking.enabled=false",
+                 f"runs_root={runs}"]) == 0
+    with pytest.raises(SigmarlError, match=r"M0/seed0 holds a run of another training config "
+                                           r"\(network.hidden: \[8, 8\] -> \[256, 256\]"):
+        plan_sweep(["models=[M0]", "ppo=smoke", "ppo.iterations=1", "tracking.enabled=false", f"runs_root={runs}"])
+    # the same config is the same run: planned, to be resumed or skipped
+    plan = plan_sweep(["models=[M0]", "ppo=smoke", "ppo.iterations=1", "network.hidden=[8,8]",
+                       "tracking.enabled=false", f"runs_root={runs}"])
+    assert plan.jobs[0].run_dir == f"{runs}/M0/seed0"
 
 
 def test_summary_lists_every_job_of_a_range(tmp_path, capsys):
-    out = sweep_overrides(["seed=range(3)", "models=[M0,M2]", f"runs_root={tmp_path}"], cores=2)
+    plan = plan_sweep(["seed=range(3)", "models=[M0,M2]", "tracking.enabled=false", f"runs_root={tmp_path}"])
     (tmp_path / "M2" / "seed1").mkdir(parents=True)
     (tmp_path / "M2" / "seed1" / "evaluated.txt").touch()
-    assert summarise(out) == 1  # five jobs unfinished
+    assert summarise(plan) == 1  # five jobs unfinished
     lines = [line for line in capsys.readouterr().out.splitlines() if "seed " in line]
     assert len(lines) == 6
     assert sum("trained and evaluated" in line for line in lines) == 1
-    assert any(line.split()[:4] == ["M2", "no_vertices", "seed", "1"] for line in lines)
+    assert any(line.split()[:4] == ["M2", "obs=no_vertices", "seed", "1"] for line in lines)
 
 
 @pytest.mark.slow
@@ -145,4 +153,4 @@ def test_sweep_with_list_values_end_to_end(tmp_path, monkeypatch, capsys):
     assert list(rows["scenario"]) == ["CPM", "Roundabout"]
     state = torch.load(run / "final.pt", weights_only=False)
     assert list(state["config"]["network"]["hidden"]) == [16, 16]
-    assert "M0     full" in capsys.readouterr().out
+    assert "M0     obs=full" in capsys.readouterr().out

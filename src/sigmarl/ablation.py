@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from sigmarl.errors import SigmarlError
+from sigmarl.scenarios import scenario, scenario_names
 
 if TYPE_CHECKING:  # sigmarl.config imports this module
     from sigmarl.config import EvalConfig, ObsConfig
@@ -35,21 +36,6 @@ OBS_FLAGS: dict[str, str] = {
     "distance_to_center_line": "DC",
 }
 
-# Scenario name -> (map config name, number of agents), study.md section 3. The first four
-# are the paper's Table I: the CPM map and the paper's own hand-drawn maps (spec §1.2).
-# The "Proc-" ones are this project's procedural builders, for generalisation beyond the
-# paper (`study=extended`); they have no numbers in the paper.
-SCENARIOS: dict[str, tuple[str, int]] = {
-    "CPM": ("cpm", 15),
-    "Intersection": ("paper_intersection", 6),
-    "On-Ramp": ("paper_on_ramp", 8),
-    "Roundabout": ("paper_roundabout", 8),
-    "Proc-Intersection": ("intersection", 6),
-    "Proc-On-Ramp": ("on_ramp", 8),
-    "Proc-Roundabout": ("roundabout", 8),
-}
-PAPER_SCENARIOS = ("CPM", "Intersection", "On-Ramp", "Roundabout")  # Table I, the default
-
 # A run folder's evaluation: one row per (scenario, simulation), and beside it what measured
 # them (protocol key, checkpoint hash, environment rules revision).
 ROWS_FILE = "evaluation_rows.csv"
@@ -57,10 +43,9 @@ ROWS_META = "evaluation.json"
 # a training iteration's timed phases (metrics.csv columns and MLflow metrics); their sum is its compute time
 TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")
 
-# Columns of one evaluation row: one (model, seed, scenario, simulation); `obs` lists the
-# strategies that were on (e.g. "V,DA,DB,DC" for M1).
-# Collision rates are fractions of environment steps (0..1); the report shows percent.
-METRIC_COLUMNS = ["CR_AA", "CR_AL", "CR_total", "CD", "AS"]  # CD in real centimetres, AS in m/s
+# Keys of one evaluation row: one (model, seed, scenario, simulation), followed by the metrics
+# (`sigmarl.metrics`); `model` is the run's label, `obs` lists the strategies that were on
+# (e.g. "V,DA,DB,DC" for M1).
 ROW_KEYS = ["model", "obs", "seed", "scenario", "simulation"]
 
 
@@ -97,10 +82,9 @@ def check_eval(eval_cfg: EvalConfig, scenarios: Sequence[str] | None = None) -> 
         raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {eval_cfg.checkpoint!r}")
     names = [str(s) for s in (scenarios if scenarios is not None else eval_cfg.scenarios)]
     if not names:
-        raise SigmarlError(f"eval.scenarios is empty; choose from {', '.join(SCENARIOS)}")
-    unknown = [s for s in names if s not in SCENARIOS]
-    if unknown:
-        raise SigmarlError(f"unknown scenario(s) {', '.join(map(repr, unknown))}; choose from {', '.join(SCENARIOS)}")
+        raise SigmarlError(f"eval.scenarios is empty; choose from {', '.join(scenario_names())}")
+    for name in names:
+        scenario(name)  # an unknown name or a malformed file ends here, in one line
     if len(set(names)) != len(names):
         raise SigmarlError(f"eval.scenarios names a scenario twice: {', '.join(names)}")
     return names

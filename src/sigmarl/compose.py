@@ -6,7 +6,9 @@ The boundary between Hydra and the rest of sigmarl: what leaves here is typed (`
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
+from dataclasses import replace
 
 from hydra import compose, initialize_config_dir
 from hydra.core.global_hydra import GlobalHydra
@@ -14,20 +16,29 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from sigmarl.ablation import SCENARIOS
 from sigmarl.config import Config, MapConfig, as_config, register_configs
 from sigmarl.errors import SigmarlError
-from sigmarl.paths import conf_dir
+from sigmarl.paths import conf_dir, config_files, user_conf_dirs
+
+
+def search_path_override() -> list[str]:
+    """The users' config folders for Hydra (`--config-dir`), searched before the package's."""
+    dirs = user_conf_dirs()
+    if not dirs:
+        return []
+    return ["hydra.searchpath=[" + ",".join(f"'file://{d}'" for d in dirs) + "]"]
 
 
 def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> Config:
     """The resolved config; a bad override raises SigmarlError with Hydra's message (which names the key)."""
+    from sigmarl.identity import fingerprint
+
     register_configs()
     # After a Hydra app (the sweep) has run in this process its global state lingers.
     GlobalHydra.instance().clear()
     try:
         with initialize_config_dir(config_dir=str(conf_dir()), version_base=None):
-            cfg = compose(config_name=config_name, overrides=list(overrides))
+            cfg = compose(config_name=config_name, overrides=[*search_path_override(), *overrides])
         OmegaConf.resolve(cfg)
     except (HydraException, OmegaConfBaseException) as e:
         raise SigmarlError(f"bad config override: {e}") from e
@@ -36,7 +47,8 @@ def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -
     unknown = _unknown_keys(cfg, OmegaConf.structured(Config))
     if unknown:
         raise SigmarlError(f"unknown config key(s): {', '.join(unknown)}")
-    return as_config(cfg)
+    config = as_config(cfg)
+    return replace(config, fingerprint=fingerprint(config))
 
 
 def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list[str]:
@@ -44,25 +56,29 @@ def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list
     for key in cfg:
         if key not in schema.keys():
             out.append(prefix + str(key))
-        elif isinstance(cfg[key], DictConfig) and isinstance(schema[key], DictConfig):
+        elif isinstance(cfg[key], DictConfig) and isinstance(schema[key], DictConfig) \
+                and dataclasses.is_dataclass(OmegaConf.get_type(schema[key])):  # not a free dict
             out += _unknown_keys(cfg[key], schema[key], f"{prefix}{key}.")
     return out
 
 
 def map_config(name: str) -> MapConfig:
-    """conf/map/<name>.yaml on the MapConfig schema, without Hydra's global state, so that
-    code running inside a Hydra job (a sweep's evaluation) can read it. The one reader of
-    a map config file outside Hydra's composition."""
-    path = conf_dir() / "map" / f"{name}.yaml"
-    if not path.is_file():
-        raise SigmarlError(f"no map config {path}")
-    values = OmegaConf.load(path)
+    """conf/map/<name>.yaml (or a user's, see `sigmarl.paths`) on the MapConfig schema, without
+    Hydra's global state, so that code running inside a Hydra job (a sweep's evaluation) can
+    read it. The one reader of a map config file outside Hydra's composition."""
+    files = config_files("map")
+    if name not in files:
+        raise SigmarlError(f"no map config {name!r} (conf/map/{name}.yaml); known maps: {', '.join(sorted(files))}")
+    values = OmegaConf.load(files[name])
     values.pop("defaults", None)
-    return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(MapConfig), values))
+    try:
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(MapConfig), values))
+    except OmegaConfBaseException as e:
+        raise SigmarlError(f"{files[name]}: {str(e).splitlines()[0]}") from e
 
 
-def scenario_map_config(scenario: str) -> MapConfig:
-    """The map config of a study scenario (sigmarl.ablation.SCENARIOS: conf/map/<name>.yaml)."""
-    if scenario not in SCENARIOS:
-        raise SigmarlError(f"unknown scenario {scenario!r}; choose from {', '.join(SCENARIOS)}")
-    return map_config(SCENARIOS[scenario][0])
+def scenario_map_config(name: str) -> MapConfig:
+    """The map config of an evaluation scenario (conf/scenario/<name>.yaml names it)."""
+    from sigmarl.scenarios import scenario
+
+    return map_config(scenario(name).map)

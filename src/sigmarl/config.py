@@ -23,8 +23,9 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from sigmarl.ablation import PAPER_SCENARIOS, model_label
+from sigmarl.ablation import model_label
 from sigmarl.errors import SigmarlError
+from sigmarl.scenarios import PAPER_SCENARIOS
 
 
 @dataclass
@@ -121,7 +122,7 @@ class PPOConfig:
 class EvalConfig:
     """Evaluation protocol (study.md section 3): the same seed for every model."""
 
-    # Table I's four by default; any of sigmarl.ablation.SCENARIOS (study=extended: all seven)
+    # scenario names (conf/scenario/<name>.yaml); conf/config.yaml takes the study's
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
     n_sims: int = 32
     steps: int = 1200
@@ -137,6 +138,27 @@ class TrackingConfig:
 
 
 @dataclass
+class StudyConfig:
+    """An ablation study as data (conf/study/<name>.yaml): which training configs it compares,
+    with which seeds, on which scenarios, and how it decides."""
+
+    name: str = "paper"
+    # label -> Hydra overrides of the training config, in table order; a label names the
+    # run folders (<runs_root>/<label>/seed<k>) and the table's column
+    variants: dict[str, list[str]] = field(default_factory=dict)
+    baseline: str = "M0"  # what every other variant is compared with
+    seeds: list[int] = field(default_factory=lambda: [0])
+    scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
+    metrics: list[str] = field(default_factory=lambda: ["CR_total"])  # the metrics decided on
+    # equivalence margins in the table's units (percentage points, cm, m/s)
+    margins: dict[str, float] = field(default_factory=lambda: {"CR_total": 0.1, "CD": 0.1, "AS": 0.01})
+    max_seeds: int = 10  # seeds=auto adds seeds up to this many per variant
+    # set by `sigmarl sweep` for its jobs: the plan file and this job's key in it
+    job: str = ""
+    plan: str = ""
+
+
+@dataclass
 class Config:
     map: MapConfig = field(default_factory=MapConfig)
     obs: ObsConfig = field(default_factory=ObsConfig)
@@ -149,7 +171,12 @@ class Config:
     device: str = "cpu"
     threads: int = 1
     resume: bool = False
-    model: str = MISSING  # M0..M5 or custom-<hash>, derived from the obs flags (conf/config.yaml)
+    study: StudyConfig = field(default_factory=StudyConfig)
+    # The run's label: a study's variant, or (a lone `sigmarl train`) M0..M5 or custom-<hash>
+    # from the obs flags (conf/config.yaml)
+    model: str = MISSING
+    overrides: list[str] = field(default_factory=list)  # the variant's overrides (a sweep job's)
+    fingerprint: str = ""  # of the training settings (sigmarl.identity), set at composition
     runs_root: str = MISSING  # the study's run folders: <runs_root>/<model>/seed<seed>
     run_dir: str = MISSING  # where checkpoints live; set by conf/config.yaml
 

@@ -71,3 +71,45 @@ def enter_sweep_folder() -> None:
     start elsewhere). Needs that folder on a shared filesystem."""
     if folder := os.environ.get(SWEEP_DIR):
         os.chdir(folder)
+
+
+SWEEP_OWNER = "SIGMARL_SWEEP_OWNER"  # "<pid> <host>" of the `sigmarl sweep` process
+OWNER_POLL_S = 2.0
+
+
+def sweep_owner_override() -> list[str]:
+    """Hands the sweep's process id and host to its jobs (see `end_with_the_sweep`)."""
+    import socket
+
+    return [f"++hydra.job.env_set.{SWEEP_OWNER}='{os.getpid()} {socket.gethostname()}'"]
+
+
+def end_with_the_sweep() -> None:
+    """In a job running on the sweep's own machine in another process (joblib's workers), end
+    the job as interrupted (SIGTERM to itself: checkpoint-safe, resumable) once the sweep's
+    process is gone, so a sweep killed with kill -9 leaves no worker training on behind it.
+    A job on another machine (SLURM, Ray) lives by its scheduler's rules instead."""
+    import signal
+    import socket
+    import threading
+
+    owner = os.environ.get(SWEEP_OWNER, "").split()
+    if len(owner) != 2 or owner[1] != socket.gethostname() or int(owner[0]) == os.getpid():
+        return
+    pid = int(owner[0])
+
+    def watch() -> None:
+        import time
+
+        while True:
+            time.sleep(OWNER_POLL_S)
+            try:
+                os.kill(pid, 0)
+            except ProcessLookupError:
+                os.kill(os.getpid(), signal.SIGTERM)
+                return
+            except PermissionError:  # alive, someone else's: not our sweep any more
+                return
+
+    if not any(t.name == "sigmarl-sweep-owner" for t in threading.enumerate()):
+        threading.Thread(target=watch, name="sigmarl-sweep-owner", daemon=True).start()

@@ -1,23 +1,37 @@
-"""`sigmarl sweep`: a Hydra multirun in which every job trains one model, then evaluates it.
+"""`sigmarl sweep`: a study's variants x seeds as a Hydra multirun, each job training one run
+and then evaluating it.
 
-The launcher is Hydra's (joblib by default, so jobs run in parallel processes;
-any other Hydra launcher plugin via `hydra/launcher=...`). A job that fails
-writes `failed.txt` into its run folder and returns, so the others go on.
-Re-running the same sweep skips finished work: training resumes from its last
-checkpoint or returns at once when finished, evaluation is skipped when MLflow
-already holds a finished one under the same protocol.
+A study declares its variants (label -> overrides of the training config), a baseline and
+seeds (`conf/study/<name>.yaml`). The sweep plans every job first, in this process: it
+composes each job's config (a typo or bad value ends here, in one line, before anything
+trains), refuses two different training configs under one label and a run folder that holds
+another config's run, and writes the plan to a file. Hydra's launcher (joblib by default, any
+other launcher plugin via `hydra/launcher=...`) then runs one job per plan entry, and each job
+composes its config from the plan. A job that fails writes `failed.txt` into its run folder
+and returns, so the others go on. Re-running the same sweep skips finished work: training
+resumes from its last checkpoint or returns at once when finished, evaluation is skipped when
+MLflow already holds a finished one under the same protocol.
+
+On the command line, besides any override of the training config:
+- `models=[M0,M4]` picks variants by label, `seeds=[0,1,2]` (or `seed=0,1,2`) the seeds;
+- `obs=a,b` replaces the study's variants with those observation presets, labelled M0..M5
+  (or custom-<hash>) from their flags, as a lone `sigmarl train` labels them;
+- a sweep over any other key (`network.hidden=[64,64],[128,128]`) makes one variant per value
+  and study variant, labelled `<variant>_<key>-<value>`.
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
-import math
+import json
 import os
+import re
 import sys
 import traceback
 import warnings
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -25,20 +39,50 @@ from hydra.core.override_parser.types import Override
 from hydra.errors import HydraException
 from omegaconf import DictConfig
 
-from sigmarl.ablation import MODELS, check_eval
-from sigmarl.config import Config, as_config
+from sigmarl.ablation import check_eval
+from sigmarl.config import Config, StudyConfig, as_config
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
-from sigmarl.resources import enter_sweep_folder, job_threads, sweep_folder_override
+from sigmarl.resources import (
+    end_with_the_sweep,
+    enter_sweep_folder,
+    job_threads,
+    sweep_folder_override,
+    sweep_owner_override,
+)
+from sigmarl.run import DONE_FILE, FAILED_FILE, Run
 
-FAILED_FILE = "failed.txt"
-DONE_FILE = "evaluated.txt"
+PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
+
+
+@dataclass
+class Job:
+    key: str  # <label>/seed<k>: the plan's key, the multirun's sub-folder
+    label: str
+    seed: int
+    overrides: list[str]  # everything the job composes its config from
+    variant: list[str]  # the variant's own overrides (recorded in the run)
+    run_dir: str
+    fingerprint: str
+
+
+@dataclass
+class SweepPlan:
+    study: StudyConfig
+    fixed: list[str]  # the user's overrides that every job shares
+    hydra: list[str]  # Hydra's own settings (launcher, ...), for the multirun
+    jobs: list[Job] = field(default_factory=list)
+    config: Config | None = None  # the sweep's config without any variant (tracking, study)
+
+    @property
+    def labels(self) -> list[str]:
+        return list(dict.fromkeys(j.label for j in self.jobs))
 
 
 def run_job(cfg: DictConfig | Config) -> str:
-    """Train (or resume, or skip) and evaluate one model; returns 'done' or 'failed'.
+    """Train (or resume, or skip) and evaluate one run; returns 'done', 'failed' or 'interrupted'.
 
-    `cfg` is the job's config as Hydra's launcher hands it over (a DictConfig, typed here)
-    or an already composed `Config`.
+    `cfg` is the job's config as Hydra's launcher hands it over (a DictConfig naming the plan
+    and the job's key in it), or an already composed `Config`.
 
     Every step can be killed at any instant and the job run again: training resumes from
     `checkpoint.pt` (or starts from scratch if it never got that far) and completes the
@@ -47,15 +91,32 @@ def run_job(cfg: DictConfig | Config) -> str:
     holds a finished evaluation run under the same protocol.
     """
     from sigmarl.cli import handle_sigterm
+
+    handle_sigterm()  # in a launcher's worker process, SIGTERM must end runs as KILLED too
+    enter_sweep_folder()
+    end_with_the_sweep()
+    try:
+        cfg = _job_config(cfg)
+    except SigmarlError as e:  # the plan is unreadable or the config tree changed under it
+        print(f"sigmarl sweep: job failed: {e}", file=sys.stderr)
+        return "failed"
+    run_dir = Path(cfg.run_dir)
+    try:
+        with Run(run_dir).lock():  # one writer per run folder, for the whole job
+            return _train_and_evaluate(cfg, run_dir)
+    except SigmarlError as e:
+        if "in use by another sigmarl process" not in str(e):
+            raise
+        print(f"sigmarl sweep: job {run_dir} skipped: {e}", file=sys.stderr)
+        return "busy"
+
+
+def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
     from sigmarl.evaluation.protocol import ROWS_FILE, checkpoint_name, evaluate_and_log
     from sigmarl.tracking import connect, experiment_id, records
     from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import train
 
-    handle_sigterm()  # in a launcher's worker process, SIGTERM must end runs as KILLED too
-    enter_sweep_folder()
-    cfg = as_config(cfg)
-    run_dir = Path(cfg.run_dir)
     (run_dir / FAILED_FILE).unlink(missing_ok=True)
     try:
         cfg = replace(cfg, resume=(run_dir / ckpt.RESUME_FILE).exists(), threads=job_threads(cfg.threads))
@@ -92,6 +153,37 @@ def run_job(cfg: DictConfig | Config) -> str:
         return "failed"
 
 
+def _job_config(cfg: DictConfig | Config) -> Config:
+    """A job's config: composed from its plan entry (Hydra's composition only carries the
+    plan's path and the job's key), or as given."""
+    if isinstance(cfg, Config):
+        return cfg
+    plan, key = str(cfg.study.plan), str(cfg.study.job)
+    if not plan:
+        return as_config(cfg)
+    from hydra.core.singleton import Singleton
+
+    from sigmarl.compose import compose_config
+
+    try:
+        entry = json.loads(Path(plan).read_text())[key]
+    except (OSError, ValueError, KeyError) as e:
+        raise SigmarlError(f"cannot read job {key!r} of the sweep plan {plan}: {e}") from e
+    state = Singleton.get_state()  # composing here must not disturb the running Hydra job
+    try:
+        job = compose_config(entry["overrides"])
+    finally:
+        Singleton.set_state(state)
+    if job.fingerprint != entry["fingerprint"]:
+        raise SigmarlError(f"job {key}: its config changed since the sweep was planned "
+                           "(config files edited?); run the sweep again")
+    return replace(job, overrides=list(entry["variant"]))
+
+
+# ---------------------------------------------------------------------------------------------
+# Planning
+
+
 def _parse(items: Sequence[str]) -> list[Override]:
     """Overrides as Hydra's own parser reads them (lists, quoted strings, range(), choice())."""
     try:
@@ -122,61 +214,161 @@ def _is_hydra(o: Override) -> bool:
     return o.key_or_group.split("/")[0].split(".")[0] == "hydra"
 
 
-def _sweeps(overrides: Sequence[str]) -> list[tuple[str, list[str]]]:
-    """(key as written, values) of every sweep over the job's config (not Hydra's settings)."""
-    return [(o.get_key_element(), _values(o)) for o in _parse(overrides)
-            if o.is_sweep_override() and not _is_hydra(o)]
+def _key(override: str) -> str:
+    """The key or group an override string sets (`+a.b=1` -> a.b, `obs=full` -> obs)."""
+    return override.split("=", 1)[0].lstrip("+~")
 
 
-def sweep_overrides(user: Sequence[str], cores: int | None = None) -> list[str]:
-    """The multirun's overrides: the six presets and seed 0 unless the user chose, plus
-    launcher settings from the core count. `seeds=[0,1,2]` (or `seeds=range(3)`) and
-    `models=[M0,M4]` are shorthands for `seed=0,1,2` and the models' presets."""
-    out: list[str] = []
-    keys = set()
-    seeds = models = None
+def _slug(key: str, value: str) -> str:
+    """`network.hidden`, `[64,64]` -> hidden-64-64: a label part that names a folder."""
+    leaf = re.split(r"[./]", key)[-1]
+    return f"{leaf}-" + (re.sub(r"[^A-Za-z0-9.]+", "-", value).strip("-") or "x")
+
+
+def plan_sweep(user: Sequence[str], cores: int | None = None) -> SweepPlan:
+    """Every job of `sigmarl sweep <user overrides>`, composed and checked; nothing is written."""
+    from sigmarl.compose import compose_config
+    from sigmarl.identity import check_label
+
+    fixed: list[str] = []
+    hydra: list[str] = []
+    sweeps: list[tuple[str, list[str]]] = []
+    models = seeds = seed = obs = None
     for o in _parse(user):
-        if o.key_or_group == "seeds":
-            seeds = _items(o)
-            continue
         if o.key_or_group == "models":
-            names = _items(o)
-            unknown = [m for m in names if m not in MODELS]
-            if unknown:
-                raise SigmarlError(f"unknown model(s) {unknown}; choose from {', '.join(MODELS)}")
-            models = [MODELS[m] for m in names]
-            continue
-        keys.add(o.key_or_group)
-        out.append(o.input_line)
-    for short, key, given in (("models", "obs", models), ("seeds", "seed", seeds)):
-        if given is not None and key in keys:
-            raise SigmarlError(f"give either {short}=[...] or {key}=..., not both")
+            models = _items(o)
+        elif o.key_or_group == "seeds":
+            seeds = _items(o)
+        elif _is_hydra(o):
+            hydra.append(o.input_line)
+        elif o.key_or_group == "seed":
+            seed = _values(o)
+        elif o.key_or_group == "obs":
+            obs = _values(o)
+        elif o.key_or_group in ("model", "overrides", "fingerprint") or o.key_or_group.startswith("study.job"):
+            raise SigmarlError(f"{o.key_or_group} is set by the sweep itself (choose variants with models=[...])")
+        elif o.is_sweep_override():
+            sweeps.append((o.get_key_element(), _values(o)))
+        else:
+            fixed.append(o.input_line)
+    if seeds is not None and seed is not None:
+        raise SigmarlError("give either seeds=[...] or seed=..., not both")
+    seeds = seeds if seeds is not None else seed
+    if models is not None and obs is not None:
+        raise SigmarlError("give either models=[...] or obs=..., not both")
+    for short, given in (("models", models), ("seeds", seeds)):
         if given is not None and not given:
             raise SigmarlError(f"{short}=[] selects no jobs")
-    if "obs" not in keys:
-        out.append("obs=" + ",".join(models or MODELS.values()))
-    if "seed" not in keys:
-        out.append("seed=" + ",".join(seeds or ["0"]))
-    n_jobs = math.prod(len(values) for _, values in _sweeps(out))
-    cores = cores or os.cpu_count() or 1
-    jobs = min(n_jobs, cores)
-    if "hydra/launcher" not in keys:
-        out.append("hydra/launcher=joblib")
-        if "hydra.launcher.n_jobs" not in keys:
-            out.append(f"hydra.launcher.n_jobs={jobs}")
+
+    base = compose_config(fixed)
+    study = base.study
+    if obs is not None:  # presets named on the command line replace the study's variants
+        variants = {}
+        for preset in obs:
+            label = compose_config([*fixed, f"obs={preset}"]).model
+            variants[label] = [f"obs={preset}"]
+    else:
+        variants = {check_label(k): list(v) for k, v in study.variants.items()}
+        if not variants:  # a study without variants: the config as composed is the only one
+            variants = {base.model: []}
+    if models is not None:
+        unknown = [m for m in models if m not in variants]
+        if unknown:
+            raise SigmarlError(f"unknown model(s) {unknown}; study {study.name!r} declares "
+                               f"{', '.join(variants) or 'none'}")
+        variants = {m: variants[m] for m in dict.fromkeys(models)}
+    seed_list = [int(s) for s in (seeds if seeds is not None else study.seeds)]
+    if not seed_list:
+        raise SigmarlError(f"study {study.name!r} declares no seeds; give seeds=[...]")
+
+    fixed_keys = {_key(o) for o in fixed}
+    plan = SweepPlan(study, fixed, hydra, config=base)
+    combos = list(itertools.product(*(values for _, values in sweeps))) if sweeps else [()]
+    owners: dict[str, Job] = {}
+    fingerprints: dict[str, tuple[str, Job]] = {}
+    for label, variant in variants.items():
+        clash = sorted(fixed_keys & {_key(v) for v in variant})
+        if clash:
+            raise SigmarlError(f"{', '.join(clash)} is set by variant {label} of study {study.name!r}; "
+                               "change the study's variants, or leave it out of the command line")
+        for combo in combos:
+            extra = [f"{key}={v}" for (key, _), v in zip(sweeps, combo, strict=True)]
+            name = "_".join([label, *(_slug(key, v) for (key, _), v in zip(sweeps, combo, strict=True))])
+            name = check_label(name if len(name) <= 64 else
+                               f"{label}_{hashlib.sha1(name.encode()).hexdigest()[:8]}")
+            for seed in seed_list:
+                overrides = [*fixed, *variant, *extra, f"model={name}", f"seed={seed}"]
+                job = _checked_job(name, seed, overrides, [*variant, *extra], compose_config)
+                if job.run_dir in owners:
+                    raise SigmarlError(f"jobs {owners[job.run_dir].key} and {job.key} would share the run "
+                                       f"folder {job.run_dir}")
+                owners[job.run_dir] = job
+                if name in fingerprints and fingerprints[name][0] != job.fingerprint:
+                    raise SigmarlError(f"two different training configs under the label {name} "
+                                       f"({fingerprints[name][1].key} and {job.key}); give each its own label")
+                fingerprints.setdefault(name, (job.fingerprint, job))
+                plan.jobs.append(job)
+    if not any(_key(h) == "hydra/launcher" for h in hydra):
+        plan.hydra.append("hydra/launcher=joblib")
+        if not any(_key(h) == "hydra.launcher.n_jobs" for h in hydra):
+            cores = cores or os.cpu_count() or 1
+            plan.hydra.append(f"hydra.launcher.n_jobs={min(len(plan.jobs), cores)}")
     # `threads` is set in each job from what its launcher granted it (sigmarl.resources).
-    return out
+    return plan
 
 
-def _jobs(overrides: Sequence[str]) -> list[list[str]]:
-    """Each job's overrides on top of `_fixed`: one value of every sweep, all combinations."""
-    sweeps = _sweeps(overrides)
-    return [[f"{key}={v}" for (key, _), v in zip(sweeps, combo, strict=True)]
-            for combo in itertools.product(*(values for _, values in sweeps))]
+def _checked_job(label: str, seed: int, overrides: list[str], variant: list[str], compose) -> Job:
+    """One job composed and checked, and its run folder's earlier run (if any) compared."""
+    from sigmarl.identity import differences
+
+    cfg = compose(overrides)
+    check_eval(cfg.eval)
+    job = Job(f"{label}/seed{seed}", label, seed, overrides, variant, cfg.run_dir, cfg.fingerprint)
+    earlier = _earlier_config(Path(cfg.run_dir))
+    if earlier is not None and earlier.fingerprint != cfg.fingerprint:
+        raise SigmarlError(f"{cfg.run_dir} holds a run of another training config "
+                           f"({differences(earlier, cfg)}); choose another runs_root=... or label")
+    return job
+
+
+def _earlier_config(run_dir: Path) -> Config | None:
+    """The training config of the run already in `run_dir`, with its fingerprint recomputed."""
+    import yaml
+
+    from sigmarl.config import config_from_dict
+    from sigmarl.identity import fingerprint
+
+    path = run_dir / "config.yaml"
+    if not path.is_file():
+        return None
+    try:
+        saved = config_from_dict(yaml.safe_load(path.read_text()) or {}, what=str(path))
+    except (OSError, yaml.YAMLError) as e:
+        raise SigmarlError(f"{path} is unreadable ({e}); move the run folder away") from e
+    return replace(saved, fingerprint=fingerprint(saved))
+
+
+def write_plan(plan: SweepPlan) -> Path:
+    """The plan as a file in the sweep's folder, named by its content (two sweeps never share
+    one by accident), written whole or not at all."""
+    from sigmarl.run import write_atomic
+
+    entries = {j.key: {"overrides": j.overrides, "variant": j.variant, "fingerprint": j.fingerprint}
+               for j in plan.jobs}
+    text = json.dumps(entries, indent=1, sort_keys=True) + "\n"
+    path = (PLANS / f"{hashlib.sha1(text.encode()).hexdigest()[:16]}.json").resolve()
+    write_atomic(path, text)
+    return path
+
+
+def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
+    """What Hydra's multirun gets: one job per plan entry, named by its key."""
+    return [*plan.fixed, *plan.hydra, "study.job=" + ",".join(j.key for j in plan.jobs),
+            f"study.plan='{plan_file}'", "hydra.sweep.subdir=${study.job}"]
 
 
 def run_sweep(user_overrides: Sequence[str]) -> int:
-    """Run the multirun in this process (Hydra's entry point), then summarise the jobs."""
+    """Plan, then run the multirun in this process (Hydra's entry point), then summarise."""
     import hydra
 
     from sigmarl.config import register_configs
@@ -185,59 +377,36 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
     # conf/hydra/launcher/ray.yaml takes the Ray plugin's config name on purpose (a ready config
     # behind `hydra/launcher=ray`); Hydra warns that it validates it against the plugin's schema.
     warnings.filterwarnings("ignore", message=r"(?s).*validated against ConfigStore schema")
-    overrides = sweep_overrides(user_overrides)
+    plan = plan_sweep(user_overrides)
+    _prepare_store(plan)
+    overrides = multirun_overrides(plan, write_plan(plan))
     register_configs()
-    _prepare_store(overrides)
     argv = sys.argv
-    sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override()]
+    sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override(), *sweep_owner_override()]
     try:
         main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
         main()
     finally:
         sys.argv = argv
-    return summarise(overrides)
+    return summarise(plan)
 
 
-def _prepare_store(overrides: Sequence[str]) -> None:
-    """Validate every job's config, then check the MLflow store and create the experiment,
-    here, before any job starts."""
-    from sigmarl.compose import compose_config
+def _prepare_store(plan: SweepPlan) -> None:
+    """Check the MLflow store and create the experiment, here, before any job starts."""
     from sigmarl.tracking import connect, experiment_id
 
-    fixed = _fixed(overrides)
-    # Compose every job here, so a typo or a bad evaluation setting ends with one message
-    # before anything trains, and two jobs never share a run folder.
-    owner: dict[str, list[str]] = {}
-    for job in _jobs(overrides):
-        cfg = compose_config([*fixed, *job])
-        check_eval(cfg.eval)
-        if cfg.run_dir in owner:
-            raise SigmarlError(
-                f"jobs {' '.join(owner[cfg.run_dir])} and {' '.join(job)} would share the run folder "
-                f"{cfg.run_dir}; sweep only models and seeds, and run one sweep per other setting, "
-                "each with its own tracking.experiment=..."
-            )
-        owner[cfg.run_dir] = job
-    cfg = compose_config(fixed)
-    if cfg.tracking.enabled:
+    cfg = plan.config
+    if cfg is not None and cfg.tracking.enabled:
         experiment_id(connect(cfg), cfg.tracking.experiment, create=True)
 
 
-def _fixed(overrides: Sequence[str]) -> list[str]:
-    """The overrides that are the same for every job (no sweeps, no hydra settings)."""
-    return [o.input_line for o in _parse(overrides) if not o.is_sweep_override() and not _is_hydra(o)]
-
-
-def summarise(overrides: Sequence[str]) -> int:
+def summarise(plan: SweepPlan) -> int:
     """Print each job's state from its run folder; non-zero if any failed or is unfinished."""
-    from sigmarl.compose import compose_config
-
-    fixed = _fixed(overrides)
     bad = 0
+    width = max([len(j.label) for j in plan.jobs] + [6])
     print("\nsweep summary:")
-    for job in _jobs(overrides):
-        cfg = compose_config([*fixed, *job])
-        run_dir = Path(cfg.run_dir)
+    for job in plan.jobs:
+        run_dir = Path(job.run_dir)
         if (run_dir / FAILED_FILE).exists():
             state = "FAILED: " + (run_dir / FAILED_FILE).read_text().strip().splitlines()[-1][:200]
             bad += 1
@@ -246,10 +415,10 @@ def summarise(overrides: Sequence[str]) -> int:
         else:
             state = "unfinished (run the sweep again to resume)"
             bad += 1
-        # Swept values other than the model and seed, if any, name the job too.
-        extra = " ".join(j for j in job if not j.startswith(("obs=", "seed=")))
-        print(f"  {cfg.model:<6} {cfg.obs.preset:<28} seed {cfg.seed:<3} {extra + '  ' if extra else ''}"
-              f"{state}   [{run_dir}]")
+        variant = " ".join(job.variant)
+        print(f"  {job.label:<{width}} {variant:<28} seed {job.seed:<3} {state}   [{run_dir}]")
     if not bad:
-        print(f"next: sigmarl report {' '.join(o for o in fixed if o.startswith(('study', 'tracking')))}".rstrip())
+        keep = [o for o in plan.fixed if o.startswith(("study", "tracking", "runs_root"))]
+        print(f"next: sigmarl report {' '.join(keep)}".rstrip())
     return 1 if bad else 0
+

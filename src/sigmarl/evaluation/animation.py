@@ -7,10 +7,10 @@ from pathlib import Path
 
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from sigmarl.ablation import SCENARIOS
 from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.env.render import render_rollout
+from sigmarl.scenarios import scenario as scenario_of
 
 
 def animate_checkpoint(path: Path, scenarios: list[str], steps: int, seed: int, out_dir: Path,
@@ -21,7 +21,7 @@ def animate_checkpoint(path: Path, scenarios: list[str], steps: int, seed: int, 
 
     out = {}
     for scenario in scenarios:
-        n_agents = SCENARIOS[scenario][1]
+        n_agents = scenario_of(scenario).n_agents
         actor, state = load_policy(path, n_agents=n_agents)
         train_cfg = ckpt.config_of(state, path)
         env = make_env(train_cfg, num_envs=1, n_agents=n_agents, mode="test", max_steps=steps,

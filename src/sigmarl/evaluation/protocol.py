@@ -19,16 +19,16 @@ from sigmarl import crash
 from sigmarl.ablation import (
     ROWS_FILE,
     ROWS_META,
-    SCENARIOS,
     check_eval,
-    model_label,
     obs_strategies,
 )
 from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
+from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
+from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import connect, experiment_id, records
 
 
@@ -66,7 +66,7 @@ def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] |
     frames = []
     state = None
     for scenario in scenarios:
-        n_agents = SCENARIOS[scenario][1]
+        n_agents = scenario_of(scenario).n_agents
         actor, state = load_policy(path, n_agents=n_agents, device=device)
         train_cfg = ckpt.config_of(state, path)
         rows = evaluate_policy(actor, train_cfg, scenario, n_sims=eval_cfg.n_sims, steps=eval_cfg.steps,
@@ -74,9 +74,12 @@ def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] |
         frames.append(rows)
         crash.point(f"eval:scenario:{scenario}")
     rows = pd.concat(frames, ignore_index=True)
-    rows.insert(0, "model", model_label(train_cfg.obs))
+    rows.insert(0, "model", train_cfg.model)  # the run's label (the study's variant)
     rows.insert(1, "obs", obs_strategies(train_cfg.obs))
     rows.insert(2, "seed", int(train_cfg.seed))
+    # which study and training config the rows belong to (rows from before have neither)
+    rows["study"] = train_cfg.study.name
+    rows["fingerprint"] = fingerprint(train_cfg)
     return rows, state
 
 
@@ -160,6 +163,8 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
     tags = {
         "model": str(rows["model"].iloc[0]),
         "obs": obs_strategies(train_cfg.obs),
+        "study": train_cfg.study.name,
+        "fingerprint": fingerprint(train_cfg),
         "seed": str(train_cfg.seed),
         "train_run_id": train_run_id or state.get("mlflow_run_id") or "",
         "checkpoint": str(path),

@@ -15,11 +15,11 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from tqdm.auto import tqdm
 
-from sigmarl.ablation import SCENARIOS
 from sigmarl.compose import scenario_map_config
 from sigmarl.config import Config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
+from sigmarl.scenarios import scenario as scenario_of
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
@@ -59,7 +59,7 @@ def evaluate_policy(
     model the same initial states.
     """
     map_cfg = scenario_map_config(scenario)
-    n_agents = n_agents or SCENARIOS[scenario][1]
+    n_agents = n_agents or scenario_of(scenario).n_agents
     env = make_env(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", max_steps=steps,
                    map_cfg=map_cfg, seed=seed, device=device)
     act = as_td_policy(policy)

@@ -13,21 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from sigmarl.ablation import METRIC_COLUMNS, MODELS, SCENARIOS
+from sigmarl.ablation import MODELS
 from sigmarl.errors import SigmarlError
+from sigmarl.metrics import BY_NAME, COLLISION_COLUMNS, METRIC_COLUMNS, UNITS
 from sigmarl.report import bootstrap as bs
 from sigmarl.report.stats import mean_ci
 
-COLLISION_COLUMNS = ("CR_AA", "CR_AL", "CR_total")
-# Units as the paper's reference CSV writes them.
-UNITS = {
-    "CR_AA": "percent",
-    "CR_AL": "percent",
-    "CR_total": "percent",
-    "CD": "cm",
-    "AS": "m/s",
-    "CS": "1",
-}
 SUMMARY_COLUMNS = [
     "scenario", "model", "metric", "unit", "mean", "ci_low", "ci_high", "std", "n", "n_seeds", "seed_std",
     "trimmed",
@@ -61,11 +52,28 @@ def _known_first(present: list[str], known: list[str]) -> list[str]:
     return [k for k in known if k in present] + [p for p in present if p not in known]
 
 
-def model_order(rows: pd.DataFrame, models: list[str] | None = None) -> list[str]:
-    """`models` as given (checked against the rows), or every model in the rows, M0..M5 first."""
+def label_order(present: list[str], known: list[str] | None = None) -> list[str]:
+    """The study's labels in its declared order (default: the paper's M0..M5), each followed by
+    the labels derived from it by a sweep over another key (`M0_hidden-64-64`), then any others
+    in order of appearance."""
+    known = list(MODELS) if known is None else list(known)
+
+    def base(label: str) -> int:
+        for i, k in enumerate(known):
+            if label == k or label.startswith(k + "_"):
+                return i
+        return len(known)
+
+    return sorted(present, key=lambda label: (base(label), label not in known))
+
+
+def model_order(rows: pd.DataFrame, models: list[str] | None = None,
+                known: list[str] | None = None) -> list[str]:
+    """`models` as given (checked against the rows), or every model in the rows in the study's
+    order (`label_order`)."""
     present = list(dict.fromkeys(rows["model"]))
     if models is None:
-        return _known_first(present, list(MODELS))
+        return label_order(present, known)
     models = [str(m) for m in models]
     absent = [m for m in models if m not in present]
     if absent:
@@ -79,7 +87,10 @@ def model_order(rows: pd.DataFrame, models: list[str] | None = None) -> list[str
 
 
 def scenario_order(rows: pd.DataFrame) -> list[str]:
-    return _known_first(list(dict.fromkeys(rows["scenario"])), list(SCENARIOS))
+    """The rows' scenarios: Table I's four in the paper's order, then the others by name."""
+    from sigmarl.scenarios import scenario_names
+
+    return _known_first(list(dict.fromkeys(rows["scenario"])), scenario_names())
 
 
 def trim_collisions(rows: pd.DataFrame) -> pd.DataFrame:
@@ -124,9 +135,11 @@ class Cell:
 
 
 def scaled(rows: pd.DataFrame) -> pd.DataFrame:
-    """The metric columns in report units: collision rates in percent."""
+    """The metric columns in report units (collision rates in percent)."""
     out = rows[METRIC_COLUMNS].astype(float)
-    out[list(COLLISION_COLUMNS)] *= 100.0
+    for name in METRIC_COLUMNS:
+        if BY_NAME[name].scale != 1.0:
+            out[name] *= BY_NAME[name].scale
     return out
 
 

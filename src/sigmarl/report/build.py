@@ -106,6 +106,8 @@ def build_report(
     ci: bool = False,
     figures: bool = True,
     extra_notes: list[str] | None = None,
+    order: list[str] | None = None,
+    baseline: str | None = None,
 ) -> Report:
     """Aggregate evaluation rows into the paper's Table I and write it to `out_dir`.
 
@@ -113,7 +115,9 @@ def build_report(
     (fractions of steps), CD (cm) and AS (m/s); models: the columns, in order (default:
     every model in the rows); trim: drop each evaluation's best and worst simulation from
     the collision rates; compare_paper: show the paper's numbers in parentheses; ci: show
-    95% bootstrap intervals; curves: (model, iteration, reward[, seed]) for the training plot.
+    95% bootstrap intervals; curves: (model, iteration, reward[, seed]) for the training plot;
+    order: the study's labels in declared order (the default columns); baseline: what every
+    other column is compared with (default M0, or the first column).
 
     Estimates weigh seeds equally and intervals come from a two-level bootstrap (seeds, then
     simulations; `sigmarl.report.bootstrap`), so the same rows give byte-identical files.
@@ -124,7 +128,7 @@ def build_report(
     distributions.png and training_curves.png (figures; curves given).
     """
     rows = validate_rows(rows)
-    models = model_order(rows, models)
+    models = model_order(rows, models, order)
     cell_list = cells(rows, models, trim=trim)
     summary = summarise(cell_list, trim=trim)
     composite = composite_scores(summary)
@@ -137,7 +141,7 @@ def build_report(
     notes += list(extra_notes or [])
     table = build_table(summary, composite, models, paper, notes)
     markdown = to_markdown(table, ci=ci)
-    better = improvement(rows, models, trim=trim)
+    better = improvement(rows, models, trim=trim, reference=baseline if baseline in models else None)
     aggregates = aggregate_scores(cell_list, composite, models)
     statistics = statistics_markdown(better, aggregates, trim=trim)
 

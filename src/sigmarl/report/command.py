@@ -10,10 +10,10 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from sigmarl.ablation import SCENARIOS
 from sigmarl.config import Config
 from sigmarl.report.build import Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_results
+from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, records
 
 
@@ -43,7 +43,7 @@ def make_report(
     options = dict(models=models, trim=trim, compare_paper=compare_paper, latex=latex, ci=ci,
                    figures=figures, animation_steps=animation_steps)
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
-                    lambda: _mlflow_checkpoint(client, experiment), **options)
+                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), **options)
     if cfg.tracking.enabled:
         records.log_report(client, experiment, report.composite, report.paths.values(), {
             "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
@@ -90,8 +90,9 @@ def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[],
     with staged(out_dir) as staging:
         report = build_report(rows, models, out_dir=staging, trim=trim, compare_paper=compare_paper,
                               latex=latex, curves=curves, ci=ci, figures=figures,
-                              extra_notes=list(extra_notes))
-        known = [s for s in report.table.scenarios if s in SCENARIOS]  # the maps the rows ran on
+                              extra_notes=list(extra_notes), order=list(cfg.study.variants) or None,
+                              baseline=cfg.study.baseline)
+        known = [s for s in report.table.scenarios if s in scenario_names()]  # the maps the rows ran on
         if figures:
             _add_maps(report, staging, known)
         if animation_steps > 0:
@@ -101,13 +102,15 @@ def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[],
 
 
 def _folder_checkpoint(results, root: Path, cfg: Config) -> Path:
-    """M0's evaluated checkpoint (its first seed) in a results folder."""
+    """The baseline's evaluated checkpoint (its first seed) in a results folder."""
     from sigmarl.errors import SigmarlError
     from sigmarl.evaluation.protocol import checkpoint_name
 
-    path = checkpoint_of(results.runs, "M0", checkpoint_name(cfg.eval.checkpoint))
+    baseline = cfg.study.baseline
+    path = checkpoint_of(results.runs, baseline, checkpoint_name(cfg.eval.checkpoint))
     if path is None:
-        raise SigmarlError(f"animations need M0's {checkpoint_name(cfg.eval.checkpoint)} in {root}; none found")
+        raise SigmarlError(f"animations need {baseline}'s {checkpoint_name(cfg.eval.checkpoint)} in {root}; "
+                           "none found")
     return path
 
 
@@ -140,17 +143,18 @@ def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
     from sigmarl.maps import load_map
     from sigmarl.maps.plot import save_scenario_maps
 
-    maps = [(s, load_map(scenario_map_config(s)), SCENARIOS[s][1]) for s in scenarios]
+    maps = [(s, load_map(scenario_map_config(s)), scenario(s).n_agents) for s in scenarios]
     report.paths["scenario_maps"] = save_scenario_maps(out_dir / "scenario_maps.png", maps)
 
 
-def _mlflow_checkpoint(client, experiment: str) -> Path:
-    """M0's evaluated checkpoint (its first seed) as recorded in MLflow, if on this machine."""
+def _mlflow_checkpoint(client, experiment: str, baseline: str) -> Path:
+    """The baseline's evaluated checkpoint (its first seed) as recorded in MLflow, if on this
+    machine."""
     from sigmarl.errors import SigmarlError
 
-    path = records.evaluated_checkpoint(client, experiment, "M0")
+    path = records.evaluated_checkpoint(client, experiment, baseline)
     if path is None:
-        raise SigmarlError("animations need M0's evaluated checkpoint on this machine; none found")
+        raise SigmarlError(f"animations need {baseline}'s evaluated checkpoint on this machine; none found")
     return path
 
 

@@ -15,12 +15,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-# Metric -> why the score is undefined when that metric's mean over the models is zero.
-_ZERO_MEAN_NOTES = {
-    "CR_total": "composite score undefined: no model collided (mean CR_total is 0)",
-    "CD": "composite score undefined: mean center-line deviation CD is 0",
-    "AS": "composite score undefined: no model moved (mean AS is 0)",
-}
+from sigmarl.metrics import BY_NAME, COMPOSITE
 
 
 @dataclass(frozen=True)
@@ -41,13 +36,13 @@ def composite_score(
     avg_speed: Mapping[str, float] | pd.Series,
 ) -> CompositeScore:
     """Composite scores of the models in one scenario from their mean CR_total, CD and AS."""
-    frame = pd.DataFrame(
-        {
-            "CR_total": pd.Series(cr_total, dtype=float),
-            "CD": pd.Series(cd, dtype=float),
-            "AS": pd.Series(avg_speed, dtype=float),
-        }
-    )
+    return composite_of({"CR_total": cr_total, "CD": cd, "AS": avg_speed})
+
+
+def composite_of(means: Mapping[str, Mapping[str, float] | pd.Series]) -> CompositeScore:
+    """Composite scores of the models in one scenario from their means of each composite
+    metric (`sigmarl.metrics.COMPOSITE`: metric -> sign), given as metric -> {model: mean}."""
+    frame = pd.DataFrame({name: pd.Series(means[name], dtype=float) for name in COMPOSITE})
     frame.index.name = "model"
     complete = frame.dropna()
     nan_scores = pd.Series(math.nan, index=frame.index, name="CS")
@@ -57,15 +52,16 @@ def composite_score(
         notes.append(f"no complete metrics for {left_out}: left out of the composite score")
     if complete.empty:
         return CompositeScore(nan_scores, "composite score undefined: no model has all metrics")
-    means = complete.mean()
-    for metric, why in _ZERO_MEAN_NOTES.items():
-        if not means[metric] > 0:
+    mean = complete.mean()
+    for name in COMPOSITE:
+        if not mean[name] > 0:
+            why = BY_NAME[name].zero_mean_note or f"composite score undefined: mean {name} is 0"
             return CompositeScore(nan_scores, "; ".join([why, *notes]))
-    scores = (
-        -complete["CR_total"] / means["CR_total"]
-        - complete["CD"] / means["CD"]
-        + complete["AS"] / means["AS"]
-    )
+    scores = None
+    for name, sign in COMPOSITE.items():  # sign x (value / mean), summed in the metrics' order
+        term = complete[name] / mean[name]
+        scores = (-term if sign < 0 else term) if scores is None else \
+            (scores - term if sign < 0 else scores + term)
     if len(complete) == 1:
         notes.append("with a single model the composite score is always -1")
     return CompositeScore(scores.reindex(frame.index).rename("CS"), "; ".join(notes) or None)
@@ -77,7 +73,7 @@ def composite_scores(summary: pd.DataFrame) -> pd.DataFrame:
     for scenario, g in summary.groupby("scenario", sort=False):
         means = g.pivot(index="model", columns="metric", values="mean")
         means = means.reindex(list(dict.fromkeys(g["model"])))
-        result = composite_score(means["CR_total"], means["CD"], means["AS"])
+        result = composite_of({name: means[name] for name in COMPOSITE})
         parts.append(
             pd.DataFrame(
                 {

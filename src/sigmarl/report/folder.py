@@ -28,7 +28,6 @@ from sigmarl.errors import SigmarlError
 METRICS_FILE = "metrics.csv"
 REWARD = "episode_reward_mean"
 _SEED_DIR = re.compile(r"seed(-?\d+)")
-_LABEL = re.compile(r"M\d+|custom-[0-9a-f]+")
 
 
 @dataclass(frozen=True)
@@ -82,9 +81,9 @@ def _rows_of(run: RunFolder) -> pd.DataFrame:
     if "model" not in rows.columns:
         rows.insert(0, "model", run.label)
     models = set(rows["model"].astype(str))
-    # folders named by label must hold that label's rows (folders of older sweeps were named
-    # by observation preset, so other names are taken as they are)
-    if _LABEL.fullmatch(run.label) and models != {run.label}:
+    # a folder named by its label holds that label's rows (folders of older sweeps were named
+    # by observation preset, so those are taken as they are)
+    if run.label not in MODELS.values() and models != {run.label}:
         raise SigmarlError(f"{path} holds rows of model {', '.join(sorted(models))}, not {run.label}")
     seeds = set(pd.to_numeric(rows["seed"], errors="coerce"))
     if seeds != {run.seed}:

@@ -15,11 +15,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from sigmarl.ablation import METRIC_COLUMNS
+from sigmarl.metrics import COMPOSITE, METRIC_COLUMNS
 from sigmarl.report import bootstrap as bs
 from sigmarl.report.aggregate import Cell, scenario_order, trim_collisions, validate_rows
 
-_SCORE_SIGNS = {"CR_total": -1.0, "CD": -1.0, "AS": 1.0}
+_SCORE_SIGNS = COMPOSITE
 _COLS = [METRIC_COLUMNS.index(m) for m in _SCORE_SIGNS]
 CS_COLUMNS = ["scenario", "model", "CS", "ci_low", "ci_high"]
 AGGREGATE_COLUMNS = ["model", "statistic", "value", "ci_low", "ci_high", "n_scenarios", "n_runs"]

@@ -13,11 +13,9 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-from sigmarl.ablation import METRIC_COLUMNS
-from sigmarl.report.aggregate import UNITS
+from sigmarl.metrics import LOWER_IS_BETTER, METRIC_COLUMNS, UNITS
 
 ROW_METRICS = [*METRIC_COLUMNS, "CS"]
-LOWER_IS_BETTER = frozenset({"CR_AA", "CR_AL", "CR_total", "CD"})
 DIGITS = 2
 MISSING = "–"
 

@@ -18,10 +18,12 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl import crash
-from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS, TIMINGS
+from sigmarl.ablation import TIMINGS
 from sigmarl.config import EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError, was_interrupted
+from sigmarl.metrics import METRIC_COLUMNS
+from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking.store import experiment_id
 
 ROWS_ARTIFACT = "evaluation_rows.csv"
@@ -32,7 +34,8 @@ def eval_key(eval_cfg: EvalConfig) -> str:
     protocol = as_dict(eval_cfg)
     # A scenario's name does not say which map it ran on (Table I's names moved from the
     # procedural maps to the paper's own): the key holds each scenario's map and agents.
-    protocol["maps"] = {s: list(SCENARIOS[s]) for s in protocol["scenarios"] if s in SCENARIOS}
+    known = scenario_names()
+    protocol["maps"] = {s: [scenario(s).map, scenario(s).n_agents] for s in protocol["scenarios"] if s in known}
     protocol["rules"] = RULES_REVISION  # rows measured under older environment rules differ
     blob = json.dumps(protocol, sort_keys=True)
     return hashlib.sha1(blob.encode()).hexdigest()[:12]

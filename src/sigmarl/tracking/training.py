@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from sigmarl.ablation import model_label, obs_strategies
+from sigmarl.ablation import obs_strategies
 from sigmarl.config import Config, as_dict
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.tracking.meta import flatten, git_commit
@@ -77,8 +77,11 @@ class Tracker:
             exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
             tags = {
                 "kind": "training",  # evaluation and report runs share the experiment
-                "model": model_label(cfg.obs),
+                "model": cfg.model,  # the run's label (the study's variant)
                 "obs": obs_strategies(cfg.obs),
+                "study": cfg.study.name,
+                "fingerprint": cfg.fingerprint,
+                "overrides": " ".join(cfg.overrides)[:5000],
                 "seed": str(cfg.seed),
             }
             if commit := git_commit():

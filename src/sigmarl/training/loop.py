@@ -22,6 +22,7 @@ from sigmarl import crash
 from sigmarl.config import Config, PPOConfig, as_dict, to_yaml
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.paths import ensure_writable
+from sigmarl.run import Run
 from sigmarl.tracking import Tracker, flatten
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
@@ -193,10 +194,18 @@ def build(cfg: Config, device: torch.device) -> Parts:
 
 
 def train(cfg: Config) -> TrainResult:
+    """Train (or resume, or complete) the run of `cfg` in its run folder, which this process
+    holds for the whole time (a second process is refused in one line)."""
     _check(cfg)
+    run_dir = Path(cfg.run_dir)
+    ensure_writable(run_dir.parent, "choose another run_dir=...")
+    with Run(run_dir).lock():
+        return _train(cfg, run_dir)
+
+
+def _train(cfg: Config, run_dir: Path) -> TrainResult:
     torch.set_num_threads(cfg.threads)
     device = _device(cfg.device)
-    run_dir = Path(cfg.run_dir)
     state = _resume_point(cfg, run_dir, device)
     ensure_writable(run_dir, "choose another run_dir=...")
     if state and state["iteration"] >= cfg.ppo.iterations:

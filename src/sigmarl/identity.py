@@ -1,0 +1,67 @@
+"""A run's identity: its label (the study's variant), its seed, and a fingerprint of the
+training settings it was trained with.
+
+Two runs with the same fingerprint and seed train the same policy. The fingerprint covers
+every setting that shapes training (map, observation, environment, network, PPO, rules) and
+nothing that does not (the seed, which names the run folder on its own; where and how it is
+tracked, evaluated, checkpointed or stopped). It is always recomputed from a config read on the
+current schema, so a config.yaml written before a setting existed (which then takes its
+default) still matches.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from typing import TYPE_CHECKING, Any
+
+from sigmarl.errors import SigmarlError
+
+if TYPE_CHECKING:
+    from sigmarl.config import Config
+
+TRAINING_GROUPS = ("map", "obs", "env", "network", "ppo", "rules")
+# names only, or what neither changes the policy nor the numbers it is trained on
+NOT_TRAINING = frozenset({"obs.preset", "map.name", "ppo.checkpoint_every", "ppo.stop_after"})
+# a label names a folder and a table column: letters, digits, '.', '_', '-'
+_LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+
+
+def training_settings(cfg: Config) -> dict[str, Any]:
+    """The flat training settings the fingerprint covers."""
+    from sigmarl.config import as_dict
+
+    values = as_dict(cfg)
+    flat = _flatten({g: values[g] for g in TRAINING_GROUPS if g in values})
+    return {k: v for k, v in flat.items() if k not in NOT_TRAINING}
+
+
+def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def fingerprint(cfg: Config) -> str:
+    blob = json.dumps(training_settings(cfg), sort_keys=True, default=str)
+    return hashlib.sha1(blob.encode()).hexdigest()[:12]
+
+
+def differences(a: Config, b: Config, limit: int = 4) -> str:
+    """The training settings in which two configs differ, as 'key: a -> b, ...'."""
+    x, y = training_settings(a), training_settings(b)
+    keys = [k for k in sorted(set(x) | set(y)) if x.get(k) != y.get(k)]
+    text = ", ".join(f"{k}: {x.get(k, '(none)')} -> {y.get(k, '(none)')}" for k in keys[:limit])
+    return text + (f" and {len(keys) - limit} more" if len(keys) > limit else "")
+
+
+def check_label(label: str) -> str:
+    if not isinstance(label, str) or not _LABEL.fullmatch(label):
+        raise SigmarlError(f"bad run label {label!r}: use up to 64 letters, digits, '.', '_' or '-', "
+                           "starting with a letter or digit (it names a folder and a table column)")
+    return label

@@ -1,0 +1,54 @@
+"""The study's metrics, one record each: every module that names, scales, ranks or scores a
+metric reads it from here. Adding a metric to Table I is a record here plus its computation in
+`sigmarl.evaluation.rollout` (which writes one column of that name per simulation).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Metric:
+    name: str  # the evaluation rows' column
+    unit: str  # as the table shows it (the paper's reference CSV's unit names)
+    scale: float  # a row's value x scale = the table's value (rows hold fractions of steps)
+    lower_is_better: bool
+    # sign in the paper's composite score (eq. 2), each term divided by its mean over the
+    # compared models; 0: not part of it
+    composite: int
+    collision: bool  # a collision rate: `--trim` drops each evaluation's best and worst simulation
+    zero_mean_note: str = ""  # why the composite score is undefined when its mean is 0
+    meaning: str = ""
+
+
+METRICS: tuple[Metric, ...] = (
+    Metric("CR_AA", "percent", 100.0, True, 0, True,
+           meaning="steps with at least one agent-agent collision"),
+    Metric("CR_AL", "percent", 100.0, True, 0, True,
+           meaning="steps with at least one agent-lane (boundary) collision"),
+    Metric("CR_total", "percent", 100.0, True, -1, True,
+           "composite score undefined: no model collided (mean CR_total is 0)",
+           "CR_AA + CR_AL"),
+    Metric("CD", "cm", 1.0, True, -1, False,
+           "composite score undefined: mean center-line deviation CD is 0",
+           "mean distance of the center of gravity to the own route's center line"),
+    Metric("AS", "m/s", 1.0, False, 1, False,
+           "composite score undefined: no model moved (mean AS is 0)",
+           "mean speed over all agent-steps"),
+)
+BY_NAME = {m.name: m for m in METRICS}
+METRIC_COLUMNS = [m.name for m in METRICS]  # the evaluation rows' metric columns, in table order
+COLLISION_COLUMNS = tuple(m.name for m in METRICS if m.collision)
+COMPOSITE = {m.name: float(m.composite) for m in METRICS if m.composite}
+# the composite score's own row in the table: unitless, higher is better
+UNITS = {**{m.name: m.unit for m in METRICS}, "CS": "1"}
+LOWER_IS_BETTER = frozenset(m.name for m in METRICS if m.lower_is_better)
+
+
+def metric(name: str) -> Metric:
+    from sigmarl.errors import SigmarlError
+
+    if name not in BY_NAME:
+        raise SigmarlError(f"unknown metric {name!r}; choose from {', '.join(BY_NAME)}")
+    return BY_NAME[name]

@@ -1,0 +1,156 @@
+"""A run folder, `<runs_root>/<label>/seed<k>/`: the record of one training run and its
+evaluation. The folder, not an in-memory object, owns a run; this module is the one place that
+knows its files, its states, how a file in it is written, and who may write it.
+
+- Every file is written whole or not at all: `write_atomic` writes a temporary file beside the
+  target, flushes it to disk, and renames it over the target (a kill leaves the old file or
+  the new one, never half of one).
+- One live process writes a run folder at a time: `Run.lock()` takes an `flock` on
+  `.seed<k>.lock` beside the folder (outside it, so that taking it creates nothing inside), which the kernel releases when its holder dies, however it dies (a kill -9
+  included), so a lock never outlives its process and a re-run needs no clean-up.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+
+from sigmarl.errors import SigmarlError
+
+# The files of a run folder.
+CONFIG_FILE = "config.yaml"  # the resolved training config, with its label and fingerprint
+METRICS_FILE = "metrics.csv"  # one row per training iteration
+RESUME_FILE = "checkpoint.pt"  # the resume point: weights, optimiser, generators
+BEST_FILE = "best.pt"  # the policy with the best mean episode reward (to 2 decimals)
+FINAL_FILE = "final.pt"  # the policy after the last iteration
+RUN_ID_FILE = "mlflow_run_id"  # the training's MLflow run
+ROWS_FILE = "evaluation_rows.csv"  # one row per (scenario, simulation)
+ROWS_META = "evaluation.json"  # what measured the rows (protocol key, checkpoint hash, rules)
+DONE_FILE = "evaluated.txt"  # the sweep's mark: trained and evaluated (the evaluation run id)
+FAILED_FILE = "failed.txt"  # the sweep's mark: the job failed (the error)
+
+# The metric whose history tells which iterations a training run holds (metrics.csv, MLflow).
+REWARD = "episode_reward_mean"
+
+
+def write_atomic(path: Path, data: str | bytes) -> None:
+    """Write `data` to `path` whole or not at all (see the module's docstring)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data.encode("utf-8") if isinstance(data, str) else data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _fsync_dir(path.parent)
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Make the rename itself durable (a power cut after it keeps the new file)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+# Locks this process holds: path -> [fd, depth] (flock is per open file, so a second open in
+# the same process would block on its own lock; nested holders share the first).
+_HELD: dict[str, list[int]] = {}
+
+
+class Run:
+    """A run folder: its files' paths, its state, its lock."""
+
+    def __init__(self, folder: str | Path) -> None:
+        self.dir = Path(folder)
+
+    def __repr__(self) -> str:
+        return f"Run({str(self.dir)!r})"
+
+    @property
+    def lock_file(self) -> Path:
+        return self.dir.parent / f".{self.dir.name}.lock"
+
+    def path(self, name: str) -> Path:
+        return self.dir / name
+
+    @property
+    def state(self) -> str:
+        """new | configured | training | trained | evaluated | failed, from the files alone."""
+        has = self.path
+        if has(FAILED_FILE).exists():
+            return "failed"
+        if has(DONE_FILE).exists():
+            return "evaluated"
+        if has(FINAL_FILE).exists():
+            return "trained"
+        if has(RESUME_FILE).exists():
+            return "training"
+        if has(CONFIG_FILE).exists():
+            return "configured"
+        return "new"
+
+    def write(self, name: str, data: str | bytes) -> Path:
+        target = self.path(name)
+        write_atomic(target, data)
+        return target
+
+    @contextlib.contextmanager
+    def lock(self) -> Iterator[Run]:
+        """Hold the folder for this process, or refuse in one line if another live process
+        holds it. Re-entrant within a process."""
+        self.dir.parent.mkdir(parents=True, exist_ok=True)
+        key = str(self.lock_file.resolve())
+        if key in _HELD:
+            _HELD[key][1] += 1
+            try:
+                yield self
+            finally:
+                _HELD[key][1] -= 1
+            return
+        fd = os.open(key, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _read_holder(fd)
+            os.close(fd)
+            raise SigmarlError(f"{self.dir} is in use by another sigmarl process{holder}; "
+                               "wait for it to end (or stop it), then run the command again") from None
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()} {socket.gethostname()}\n".encode())
+        except OSError:
+            pass  # the note only helps the message above; the lock is what counts
+        _HELD[key] = [fd, 1]
+        try:
+            yield self
+        finally:
+            del _HELD[key]
+            os.close(fd)  # releases the flock
+
+    @property
+    def locked_here(self) -> bool:
+        return str(self.lock_file.resolve()) in _HELD
+
+
+def _read_holder(fd: int) -> str:
+    try:
+        pid_host = os.pread(fd, 200, 0).decode().split()
+    except OSError:
+        return ""
+    return f" (pid {pid_host[0]} on {pid_host[1]})" if len(pid_host) == 2 else ""
