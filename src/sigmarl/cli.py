@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from sigmarl.errors import SigmarlError, Terminated, on_signal, was_interrupted
+from sigmarl.paths import add_user_conf_dir
 
 
 def handle_sigterm() -> None:
@@ -126,6 +127,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="sigmarl",
         description="The SigmaRL observation-design ablation study: maps, environment, MAPPO training, evaluation, report.",
     )
+    p.add_argument("--config-dir", action="append", default=[], metavar="DIR",
+                   help="a folder of your own configs laid out like conf/ (study/, scenario/, map/, ...), "
+                        "searched before sigmarl's; repeatable")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     maps = sub.add_parser("maps", help="list road maps or draw one to PNG")
     maps.add_argument("action", choices=["list", "show"])
@@ -180,6 +184,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     handle_sigterm()
     try:
+        for folder in args.config_dir:
+            add_user_conf_dir(folder)
         rc = args.func(args)
     except SigmarlError as e:
         print(f"sigmarl: error: {e}", file=sys.stderr)

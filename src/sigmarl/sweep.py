@@ -363,8 +363,13 @@ def write_plan(plan: SweepPlan) -> Path:
 
 def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
     """What Hydra's multirun gets: one job per plan entry, named by its key."""
-    return [*plan.fixed, *plan.hydra, "study.job=" + ",".join(j.key for j in plan.jobs),
-            f"study.plan='{plan_file}'", "hydra.sweep.subdir=${study.job}"]
+    from sigmarl.compose import search_path_override
+    from sigmarl.paths import CONFIG_PATH, user_conf_dirs
+
+    users = [f"++hydra.job.env_set.{CONFIG_PATH}='{os.pathsep.join(map(str, user_conf_dirs()))}'"] \
+        if user_conf_dirs() else []
+    return [*search_path_override(), *plan.fixed, *plan.hydra, "study.job=" + ",".join(j.key for j in plan.jobs),
+            f"study.plan='{plan_file}'", "hydra.sweep.subdir=${study.job}", *users]
 
 
 def run_sweep(user_overrides: Sequence[str]) -> int:

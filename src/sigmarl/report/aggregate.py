@@ -8,6 +8,7 @@ it reflects the seed-to-seed variation that pooled simulations would hide.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,8 +55,8 @@ def _known_first(present: list[str], known: list[str]) -> list[str]:
 
 def label_order(present: list[str], known: list[str] | None = None) -> list[str]:
     """The study's labels in its declared order (default: the paper's M0..M5), each followed by
-    the labels derived from it by a sweep over another key (`M0_hidden-64-64`), then any others
-    in order of appearance."""
+    the labels derived from it by a sweep over another key (`M0_hidden-64-64`, in natural order:
+    8 before 16), then any others, also in natural order."""
     known = list(MODELS) if known is None else list(known)
 
     def base(label: str) -> int:
@@ -64,7 +65,11 @@ def label_order(present: list[str], known: list[str] | None = None) -> list[str]
                 return i
         return len(known)
 
-    return sorted(present, key=lambda label: (base(label), label not in known))
+    def natural(label: str) -> list:
+        return [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", label)]
+
+    return sorted(present, key=lambda label: (base(label), label not in known,
+                                              natural(label) if label not in known else []))
 
 
 def model_order(rows: pd.DataFrame, models: list[str] | None = None,
