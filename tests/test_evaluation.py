@@ -5,11 +5,11 @@ from __future__ import annotations
 import pytest
 import torch
 
-from sigmarl.scenarios import scenario_names
 from sigmarl.compose import compose_config, scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
+from sigmarl.scenarios import scenario_names
 
 
 def still(obs):

@@ -17,12 +17,12 @@ import pytest
 import torch
 from shapely.geometry import LineString, Point, Polygon
 
-from sigmarl.scenarios import PAPER_SCENARIOS, scenario, scenario_names
 from sigmarl.compose import compose_config
 from sigmarl.env.spawn import MIN_GAP
 from sigmarl.maps import load_map
 from sigmarl.maps.paper import PAPER_MAPS, package_map_path, write_paper_maps
 from sigmarl.maps.routes import enumerate_routes
+from sigmarl.scenarios import PAPER_SCENARIOS, scenario, scenario_names
 
 DATA = Path(__file__).parent / "data"
 FACTS = json.loads((DATA / "paper_test_maps.json").read_text())["maps"]

@@ -310,6 +310,7 @@ def sigterm_while_drawing() -> None:
 def _store_with_evaluations(folder: Path, experiment: str) -> str:
     """A store holding evaluation runs of M0 and M1 (hand-made rows); returns its URI."""
     from sigmarl.metrics import METRIC_COLUMNS
+    from sigmarl.scenarios import scenario_names
     from sigmarl.tracking import experiment_id, records
 
     uri = f"sqlite:///{folder}/mlflow.db"
@@ -318,7 +319,7 @@ def _store_with_evaluations(folder: Path, experiment: str) -> str:
     for model in ("M0", "M1"):
         rows = pd.DataFrame([{"model": model, "obs": model, "seed": 0, "scenario": s,
                               "simulation": i, **{m: 0.1 * i for m in METRIC_COLUMNS}}
-                             for s in SCENARIOS for i in range(3)])
+                             for s in scenario_names() for i in range(3)])
         records.log_evaluation(client, exp_id, rows, {"model": model, "seed": "0"}, {})
     return uri
 

@@ -12,11 +12,11 @@ import pandas as pd
 import pytest
 from mlflow import MlflowClient
 
-from sigmarl.metrics import METRIC_COLUMNS
-from sigmarl.scenarios import PAPER_SCENARIOS
 from sigmarl.cli import main
 from sigmarl.env.params import RULES_REVISION
+from sigmarl.metrics import METRIC_COLUMNS
 from sigmarl.report.folder import read_results
+from sigmarl.scenarios import PAPER_SCENARIOS
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 TABLE_FILES = ["table.md", "table.csv", "table.tex", "summary.csv", "composite_scores.csv",

@@ -7,9 +7,9 @@ import pytest
 from mlflow import MlflowClient
 
 from sigmarl.ablation import MODELS
+from sigmarl.cli import main
 from sigmarl.metrics import METRIC_COLUMNS
 from sigmarl.scenarios import PAPER_SCENARIOS
-from sigmarl.cli import main
 
 pytestmark = pytest.mark.slow
 

@@ -36,10 +36,6 @@ OBS_FLAGS: dict[str, str] = {
     "distance_to_center_line": "DC",
 }
 
-# A run folder's evaluation: one row per (scenario, simulation), and beside it what measured
-# them (protocol key, checkpoint hash, environment rules revision).
-ROWS_FILE = "evaluation_rows.csv"
-ROWS_META = "evaluation.json"
 # a training iteration's timed phases (metrics.csv columns and MLflow metrics); their sum is its compute time
 TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")
 

@@ -16,8 +16,10 @@ import contextlib
 import fcntl
 import os
 import socket
-from collections.abc import Iterator
+import tempfile
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 from sigmarl.errors import SigmarlError
 
@@ -37,19 +39,24 @@ FAILED_FILE = "failed.txt"  # the sweep's mark: the job failed (the error)
 REWARD = "episode_reward_mean"
 
 
-def write_atomic(path: Path, data: str | bytes) -> None:
-    """Write `data` to `path` whole or not at all (see the module's docstring)."""
+def write_atomic(path: Path, data: str | bytes | Callable[[BinaryIO], None]) -> None:
+    """Write `data` (text, bytes, or a function that writes into the open binary file) to
+    `path` whole or not at all (see the module's docstring)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with open(tmp, "wb") as f:
-            f.write(data.encode("utf-8") if isinstance(data, str) else data)
+        with os.fdopen(fd, "wb") as f:
+            if callable(data):
+                data(f)
+            else:
+                f.write(data.encode("utf-8") if isinstance(data, str) else data)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)  # mkstemp makes it owner-only
         os.replace(tmp, path)
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        Path(tmp).unlink(missing_ok=True)
         raise
     _fsync_dir(path.parent)
 

@@ -49,7 +49,7 @@ from sigmarl.resources import (
     sweep_folder_override,
     sweep_owner_override,
 )
-from sigmarl.run import DONE_FILE, FAILED_FILE, Run
+from sigmarl.run import CONFIG_FILE, DONE_FILE, FAILED_FILE, Run, write_atomic
 
 PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
 
@@ -128,12 +128,12 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
             exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
             if done := records.finished_evaluation(client, exp_id, result.run_id, records.eval_key(cfg.eval)):
                 print(f"{run_dir}: already evaluated")
-                (run_dir / DONE_FILE).write_text(f"{done.info.run_id}\n")
+                write_atomic(run_dir / DONE_FILE, f"{done.info.run_id}\n")
                 return "done"
         path = run_dir / checkpoint_name(cfg.eval.checkpoint)
         _, eval_run = evaluate_and_log(path, cfg, result.run_id, progress=False,
                                        rows_file=run_dir / ROWS_FILE)
-        (run_dir / DONE_FILE).write_text(f"{eval_run or ''}\n")
+        write_atomic(run_dir / DONE_FILE, f"{eval_run or ''}\n")
         return "done"
     except BaseException as e:
         if was_interrupted(e):  # Ctrl-C or SIGTERM: interrupted, not failed; a re-run resumes
@@ -146,7 +146,7 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
         message = str(e) if isinstance(e, SigmarlError) else traceback.format_exc()
         try:
             run_dir.mkdir(parents=True, exist_ok=True)
-            (run_dir / FAILED_FILE).write_text(message)
+            write_atomic(run_dir / FAILED_FILE, message)
         except OSError:  # an unwritable run folder is itself the error reported
             pass
         print(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", file=sys.stderr)
@@ -338,7 +338,7 @@ def _earlier_config(run_dir: Path) -> Config | None:
     from sigmarl.config import config_from_dict
     from sigmarl.identity import fingerprint
 
-    path = run_dir / "config.yaml"
+    path = run_dir / CONFIG_FILE
     if not path.is_file():
         return None
     try:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import tempfile
 from pathlib import Path
 
@@ -17,8 +16,6 @@ import pandas as pd
 
 from sigmarl import crash
 from sigmarl.ablation import (
-    ROWS_FILE,
-    ROWS_META,
     check_eval,
     obs_strategies,
 )
@@ -28,6 +25,7 @@ from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
+from sigmarl.run import ROWS_FILE, ROWS_META, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import connect, experiment_id, records
 
@@ -109,12 +107,6 @@ def _identity(path: Path, cfg: Config) -> dict[str, str]:
             "checkpoint_sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
 def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | None:
     meta = _read_meta(rows_file)
     if meta is None or {k: meta.get(k) for k in identity} != identity or not rows_file.exists():
@@ -127,10 +119,10 @@ def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | Non
 def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) -> None:
     """Rows first, then the note saying what they are: a kill in between leaves no note."""
     _meta_path(rows_file).unlink(missing_ok=True)
-    _write_atomic(rows_file, rows.to_csv(index=False))
+    write_atomic(rows_file, rows.to_csv(index=False))
     # `rules`: which environment rules measured them (`report --from` leaves out older ones)
     meta = {**identity, "rules": RULES_REVISION, "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
-    _write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
+    write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
 
 
 def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenarios=None,

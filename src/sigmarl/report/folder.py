@@ -21,12 +21,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.ablation import MODELS, ROWS_FILE, ROWS_META, TIMINGS
+from sigmarl.ablation import MODELS, TIMINGS
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
+from sigmarl.run import METRICS_FILE, REWARD, ROWS_FILE, ROWS_META
 
-METRICS_FILE = "metrics.csv"
-REWARD = "episode_reward_mean"
 _SEED_DIR = re.compile(r"seed(-?\d+)")
 
 

@@ -23,10 +23,11 @@ from sigmarl.config import EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError, was_interrupted
 from sigmarl.metrics import METRIC_COLUMNS
+from sigmarl.run import REWARD, ROWS_FILE
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking.store import experiment_id
 
-ROWS_ARTIFACT = "evaluation_rows.csv"
+ROWS_ARTIFACT = ROWS_FILE
 
 
 def eval_key(eval_cfg: EvalConfig) -> str:
@@ -132,7 +133,7 @@ def _last_per_step(client, run_id: str, metric: str) -> dict[int, float]:
     return {m.step: m.value for m in history}
 
 
-def load_training_curves(client, experiment: str, metric: str = "episode_reward_mean") -> pd.DataFrame:
+def load_training_curves(client, experiment: str, metric: str = REWARD) -> pd.DataFrame:
     """(model, seed, iteration, reward, seconds) for the experiment's training runs; seconds:
     the iteration's compute time (NaN where the run logged no timings)."""
     columns = ["model", "seed", "iteration", "reward", "seconds"]

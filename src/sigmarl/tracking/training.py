@@ -18,11 +18,12 @@ from typing import Any
 from sigmarl.ablation import obs_strategies
 from sigmarl.config import Config, as_dict
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
+from sigmarl.run import REWARD
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import connect, experiment_id
 
 # the metric whose history tells which iterations a training run already holds
-STEP_MARKER = "episode_reward_mean"
+STEP_MARKER = REWARD
 
 
 def _has_run(client: Any, run_id: str) -> bool:

@@ -12,9 +12,7 @@ weights whose names or shapes differ from the network its config builds is one S
 
 from __future__ import annotations
 
-import os
 import random
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -25,10 +23,10 @@ import torch
 from sigmarl.config import Config, config_from_dict
 from sigmarl.errors import SigmarlError
 
+# the run folder's checkpoint names, read as `ckpt.RESUME_FILE` etc.
+from sigmarl.run import BEST_FILE, FINAL_FILE, RESUME_FILE, write_atomic  # noqa: F401
+
 FORMAT = 1
-RESUME_FILE = "checkpoint.pt"
-BEST_FILE = "best.pt"
-FINAL_FILE = "final.pt"
 
 POLICY_KEYS = ("iteration", "policy", "config", "dims")  # what every checkpoint holds
 RESUME_KEYS = (*POLICY_KEYS, "critic", "optimizer", "rng")
@@ -41,19 +39,8 @@ def policy_only(state: dict[str, Any]) -> dict[str, Any]:
 
 
 def save_atomic(state: dict[str, Any], path: Path) -> None:
-    """Write to a temporary file in the same folder, then rename over the target."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(state, f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp makes it owner-only
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """A checkpoint written whole or not at all (`sigmarl.run.write_atomic`)."""
+    write_atomic(path, lambda f: torch.save(state, f))
 
 
 def load(path: Path, device: str | torch.device = "cpu", resume: bool = False) -> dict[str, Any]:

@@ -22,7 +22,7 @@ from sigmarl import crash
 from sigmarl.config import Config, PPOConfig, as_dict, to_yaml
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.paths import ensure_writable
-from sigmarl.run import Run
+from sigmarl.run import CONFIG_FILE, REWARD, RUN_ID_FILE, Run, write_atomic
 from sigmarl.tracking import Tracker, flatten
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
@@ -38,8 +38,6 @@ from sigmarl.training.metrics_file import METRICS_FILE
 from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic, make_sampler
 from sigmarl.training.ppo_loss import LOSSES
 
-RUN_ID_FILE = "mlflow_run_id"
-CONFIG_FILE = "config.yaml"
 # what a resume must share with the interrupted run (anything else, e.g. threads, device,
 # evaluation settings, may change); ppo.stop_after is the interruption itself
 RESUME_MUST_MATCH = ("map.", "obs.", "env.", "network.", "ppo.", "seed")
@@ -250,7 +248,7 @@ def _train(cfg: Config, run_dir: Path) -> TrainResult:
             # the rows after the resume point are computed again; MLflow gets what it missed
             tracker.sync_metrics(metrics_file.truncate(metrics_path, start))
         else:
-            (run_dir / CONFIG_FILE).write_text(to_yaml(cfg))
+            write_atomic(run_dir / CONFIG_FILE, to_yaml(cfg))
             metrics_path.unlink(missing_ok=True)
             tracker.log_artifact(run_dir / CONFIG_FILE)
             crash.point("train:start")
@@ -285,7 +283,7 @@ def _train(cfg: Config, run_dir: Path) -> TrainResult:
             pending.append((done_its, metrics))
             metrics_file.append(metrics_path, done_its, metrics)
             crash.point(f"train:iteration:{done_its}")
-            reward = metrics["episode_reward_mean"]
+            reward = metrics[REWARD]
             if best is None or round(reward, 2) > best:  # the paper: best reward to 2 decimals
                 best = round(reward, 2)
                 ckpt.save_atomic(ckpt.policy_only(snapshot(done_its, reward)), run_dir / ckpt.BEST_FILE)
@@ -348,7 +346,7 @@ def _open_tracker(cfg: Config, run_dir: Path, state: dict[str, Any] | None) -> T
     if tracker.enabled and not state and id_file.exists():
         Tracker(tracker.client, id_file.read_text().strip()).discard()
     if tracker.enabled and tracker.run_id != old:
-        id_file.write_text(f"{tracker.run_id}\n")
+        write_atomic(id_file, f"{tracker.run_id}\n")
     return tracker
 
 
@@ -371,7 +369,7 @@ def _complete(cfg: Config, run_dir: Path, state: dict[str, Any]) -> TrainResult:
         tracker = Tracker.open(cfg, run_id, reopen=False)
         if tracker.run_id != run_id:  # a store that had no record of it (see Tracker.open)
             run_id = tracker.run_id
-            (run_dir / RUN_ID_FILE).write_text(f"{run_id}\n")
+            write_atomic(run_dir / RUN_ID_FILE, f"{run_id}\n")
         if tracker.status() != "FINISHED":
             print(f"{run_dir}: completing the MLflow record of the finished training")
             _complete_record(tracker, run_dir, iterations)

@@ -12,7 +12,7 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
-METRICS_FILE = "metrics.csv"
+from sigmarl.run import METRICS_FILE  # noqa: F401  (its callers name the file through here)
 
 
 def append(path: Path, iteration: int, metrics: Mapping[str, float]) -> None:
