@@ -1,7 +1,9 @@
-"""The ablation study's fixed vocabulary: models, their observation presets, the test scenarios.
+"""The paper's vocabulary: its five observation strategies (the one list every module reads),
+its six models' presets, and the labels of a lone run derived from its flags (`model_label`);
+plus the check of an evaluation's settings.
 
-A run's model label is derived from its observation flags here and nowhere else: training
-tags, run folders, evaluation rows and the report all call `model_label`.
+A study's own labels are its variants (`conf/study/*.yaml`); M0..M5 name the paper's models
+and label a `sigmarl train` outside a study.
 """
 
 from __future__ import annotations
@@ -16,17 +18,6 @@ from sigmarl.scenarios import scenario, scenario_names
 if TYPE_CHECKING:  # sigmarl.config imports this module
     from sigmarl.config import EvalConfig, ObsConfig
 
-# Model name -> observation preset (conf/obs/<preset>.yaml).
-MODELS: dict[str, str] = {
-    "M0": "full",
-    "M1": "no_ego_view",
-    "M2": "no_vertices",
-    "M3": "no_distance_to_agents",
-    "M4": "no_distance_to_boundaries",
-    "M5": "no_distance_to_center_line",
-}
-PRESET_TO_MODEL = {preset: model for model, preset in MODELS.items()}
-
 # The paper's five observation strategies: config flag -> the paper's short name.
 OBS_FLAGS: dict[str, str] = {
     "ego_view": "E",
@@ -35,6 +26,11 @@ OBS_FLAGS: dict[str, str] = {
     "distance_to_boundaries": "DB",
     "distance_to_center_line": "DC",
 }
+
+# The paper's six models: M0 with all five strategies, M<k> leaving out the k-th (the order
+# above); model -> observation preset (conf/obs/<preset>.yaml).
+MODELS: dict[str, str] = {"M0": "full", **{f"M{k}": f"no_{flag}" for k, flag in enumerate(OBS_FLAGS, 1)}}
+PRESET_TO_MODEL = {preset: model for model, preset in MODELS.items()}
 
 # a training iteration's timed phases (metrics.csv columns and MLflow metrics); their sum is its compute time
 TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")

@@ -111,7 +111,7 @@ def cmd_report(args: argparse.Namespace) -> None:
                    compare_paper=args.compare_paper, models=models, ci=args.ci,
                    figures=not args.no_figures, animation_steps=args.animations)
     if args.source:
-        report = make_report_from_folder(Path(args.source), cfg, **options)
+        report = make_report_from_folder([Path(s) for s in args.source], cfg, **options)
     else:
         report = make_report(cfg, **options)
     print(report.markdown)  # the table's notes are part of it
@@ -162,9 +162,10 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--ci", action="store_true",
                     help="show 95%% bootstrap intervals (over seeds and simulations) in the cells")
     rp.add_argument("--models", help="comma-separated models to compare (default: all evaluated)")
-    rp.add_argument("--from", dest="source", metavar="FOLDER",
-                    help="rebuild from a results folder (<model>/seed<k>/ with evaluation_rows.csv, "
-                         "metrics.csv) instead of reading MLflow")
+    rp.add_argument("--from", dest="source", metavar="FOLDER", action="append",
+                    help="rebuild from a results folder (<label>/seed<k>/ with evaluation_rows.csv, "
+                         "metrics.csv) instead of reading MLflow; repeatable (a study whose variants "
+                         "live in several folders)")
     rp.add_argument("--out", help="output folder (default: reports/<experiment>, or reports/<FOLDER name>)")
     rp.add_argument("--no-figures", action="store_true", help="tables only")
     rp.add_argument("--animations", type=int, nargs="?", const=200, default=0, metavar="STEPS",

@@ -35,15 +35,10 @@ class ObsFlags:
 
     @classmethod
     def from_config(cls, cfg: ObsConfig) -> ObsFlags:
-        return cls(
-            ego_view=bool(cfg.ego_view),
-            vertices=bool(cfg.vertices),
-            distance_to_agents=bool(cfg.distance_to_agents),
-            distance_to_boundaries=bool(cfg.distance_to_boundaries),
-            distance_to_center_line=bool(cfg.distance_to_center_line),
-            n_nearest=int(cfg.n_nearest),
-            n_ref_points=int(cfg.n_ref_points),
-        )
+        from sigmarl.ablation import OBS_FLAGS  # the strategies' one list
+
+        return cls(**{flag: bool(getattr(cfg, flag)) for flag in OBS_FLAGS},
+                   n_nearest=int(cfg.n_nearest), n_ref_points=int(cfg.n_ref_points))
 
 
 @dataclass

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from sigmarl.config import Config
 from sigmarl.report.build import Report, build_report
-from sigmarl.report.folder import checkpoint_of, read_results
+from sigmarl.report.folder import checkpoint_of, read_many, read_results
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, records
 
@@ -52,7 +52,7 @@ def make_report(
 
 
 def make_report_from_folder(
-    root: Path,
+    root: Path | list[Path],
     cfg: Config,
     out_dir: Path | None = None,
     latex: bool = False,
@@ -63,14 +63,17 @@ def make_report_from_folder(
     figures: bool = True,
     animation_steps: int = 0,
 ) -> Report:
-    """The report of a results folder (`sigmarl.report.folder`): no MLflow reads, no training.
+    """The report of a results folder, or of several (a study whose variants live in different
+    folders, e.g. reused runs of another study), `sigmarl.report.folder`: no MLflow reads, no
+    training.
 
     Logged as a report run in experiment `cfg.tracking.experiment` unless tracking is off.
-    Default output: reports/<folder name>.
+    Default output: reports/<folder name> (several folders: reports/<study name>).
     """
-    root = Path(root)
-    results = read_results(root)
-    out_dir = out_dir or Path("reports") / root.resolve().name
+    roots = [Path(r) for r in (root if isinstance(root, list) else [root])]
+    results = read_results(roots[0]) if len(roots) == 1 else read_many(roots)
+    root = roots[0]
+    out_dir = out_dir or Path("reports") / (root.resolve().name if len(roots) == 1 else cfg.study.name)
     curves = results.curves if len(results.curves) else None  # read anyway: training.md needs them
     client = connect(cfg) if cfg.tracking.enabled else None  # checked before any work
     options = dict(models=models, trim=trim, compare_paper=compare_paper, latex=latex, ci=ci,
@@ -79,7 +82,7 @@ def make_report_from_folder(
                     extra_notes=results.notes, **options)
     if client is not None:
         records.log_report(client, cfg.tracking.experiment, report.composite, report.paths.values(),
-                           {"source": str(root.resolve())})
+                           {"source": ",".join(str(r.resolve()) for r in roots)})
     return report
 
 
@@ -87,6 +90,8 @@ def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[],
            models, trim, compare_paper, latex, ci, figures, animation_steps, extra_notes=()) -> Report:
     """Tables, figures, the scenarios' maps and M0's animations, drawn into a staging folder and
     moved into out_dir only when all are complete."""
+    if models is None and cfg.study.variants:
+        models = _study_labels(rows, list(cfg.study.variants))
     with staged(out_dir) as staging:
         report = build_report(rows, models, out_dir=staging, trim=trim, compare_paper=compare_paper,
                               latex=latex, curves=curves, ci=ci, figures=figures,
@@ -99,6 +104,16 @@ def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[],
             report.paths.update(_animations(m0_checkpoint(), cfg, staging, animation_steps, known))
         publish(report, staging, out_dir)
     return report
+
+
+def _study_labels(rows, declared: list[str]) -> list[str] | None:
+    """The labels in the rows that belong to the study (its variants, and those a sweep derived
+    from them, e.g. M0_hidden-64-64), in the study's order; None (all labels) if none does."""
+    from sigmarl.report.aggregate import label_order
+
+    present = list(dict.fromkeys(rows["model"].astype(str)))
+    ours = [m for m in present if any(m == v or m.startswith(v + "_") for v in declared)]
+    return label_order(ours, declared) if ours else None
 
 
 def _folder_checkpoint(results, root: Path, cfg: Config) -> Path:

@@ -154,6 +154,20 @@ def read_results(root: Path) -> FolderResults:
     return FolderResults(rows, curve_frame, runs, notes)
 
 
+def read_many(roots: list[Path]) -> FolderResults:
+    """`read_results` of several folders as one; a label and seed found twice is refused."""
+    parts = [read_results(r) for r in roots]
+    rows = pd.concat([p.rows for p in parts], ignore_index=True)
+    seen = rows.drop_duplicates(["model", "seed", "scenario", "simulation"])
+    if len(seen) < len(rows):
+        twice = rows[rows.duplicated(["model", "seed", "scenario", "simulation"])].iloc[0]
+        raise SigmarlError(f"{twice['model']} seed {twice['seed']} is in more than one of "
+                           f"{', '.join(map(str, roots))}")
+    curves = [p.curves for p in parts if len(p.curves)]
+    return FolderResults(rows, pd.concat(curves, ignore_index=True) if curves else parts[0].curves,
+                         [r for p in parts for r in p.runs], [n for p in parts for n in p.notes])
+
+
 def checkpoint_of(runs: list[RunFolder], model: str, name: str) -> Path | None:
     """`name` (best.pt / final.pt) of `model`'s lowest seed in the folder, if present."""
     for run in runs:
