@@ -21,7 +21,7 @@ _ERFC = np.frompyfunc(math.erfc, 1, 1)
 
 def normal_cdf(x: np.ndarray | float) -> np.ndarray:
     """Phi(x), accurate in both tails (erfc, not 1 - erf)."""
-    return (_ERFC(-np.asarray(x, dtype=float) / math.sqrt(2)) / 2).astype(float)
+    return np.asarray(_ERFC(-np.asarray(x, dtype=float) / math.sqrt(2)), dtype=float) / 2
 
 
 def normal_ppf(p: float) -> float:
