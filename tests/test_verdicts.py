@@ -141,7 +141,7 @@ def test_verdict_rules_and_holm_over_the_study():
     })
     design = Design(variants=["M0", "M1", "M2", "M3"], metrics=("CR_total",), margins={"CR_total": 0.3})
     table = verdict_table(rows, design)
-    got = dict(zip(zip(table["scenario"], table["variant"]), table["verdict"], strict=True))
+    got = dict(zip(zip(table["scenario"], table["variant"], strict=True), table["verdict"], strict=True))
     assert got == {("A", "M1"): "worse", ("A", "M2"): "equivalent", ("A", "M3"): "undecided",
                    ("B", "M1"): "better"}
     # Holm's family is the 4 comparisons of the study (M2 and M3 are absent from B)
