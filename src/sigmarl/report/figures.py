@@ -139,7 +139,7 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
         ax.set_title(panel, fontsize=9)
         ax.set_xlabel("τ: CR_total (%)")
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("fraction of simulations with CR_total > τ")
+    axes[0].set_ylabel("fraction with CR_total > τ")
     axes[-1].legend(fontsize=7)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
@@ -168,7 +168,8 @@ def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str] | Non
         if n > 1:
             ax.fill_between(per_seed.index, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
     ax.set_xlabel("iteration")
-    ax.set_ylabel("mean episode reward (95% bootstrap band over seeds)")
+    ax.set_ylabel("mean episode reward")
+    ax.set_title("mean over seeds, 95% bootstrap band over seeds", fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(ncols=2, fontsize=8)
     path.parent.mkdir(parents=True, exist_ok=True)
