@@ -136,3 +136,27 @@ def test_next_round_stops_at_the_cap():
     assert r.reasons == ["M2 vs M0, CPM, CR_total: undecided at the cap of 3 seeds"]
     # a single look (n_start = max_seeds) spends all of alpha at it
     assert r.verdicts["nominal_level"].iloc[0] == pytest.approx(ALPHA, abs=1e-4)
+
+
+@pytest.mark.slow
+def test_four_equal_variants_sharing_the_baseline_keep_the_family_wise_rate():
+    # Holm over the study's comparisons at every look: with four variants equal to the baseline
+    # (one baseline's seeds shared by all four tests), any false better/worse counts once
+    k, reps = 4, 300
+    rng = np.random.default_rng(7)
+    false_seq = false_naive = 0
+    for _ in range(reps):
+        base, variants = seed_means(rng, 1, 0.0)[0], seed_means(rng, k, 0.0)
+        seq: list[str | None] = [None] * k
+        naive: list[str | None] = [None] * k
+        for n in range(N_START, MAX_SEEDS + 1):
+            tests = [welch(variants[i, :n], base[:n], MARGIN) for i in range(k)]
+            v = sequential_decide(tests, [LOWER_IS_BETTER] * k, seq, N_START, MAX_SEEDS, ALPHA)[0]
+            seq = [x if x != "undecided" else None for x in v]
+            plain = decide(tests, [LOWER_IS_BETTER] * k, ALPHA)[0]
+            naive = [p or (x if x != "undecided" else None) for p, x in zip(naive, plain, strict=True)]
+            if all(seq) and all(naive):
+                break
+        false_seq += any(x in ("better", "worse") for x in seq)
+        false_naive += any(x in ("better", "worse") for x in naive)
+    assert false_seq / reps <= 0.05 < false_naive / reps
