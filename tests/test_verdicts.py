@@ -151,7 +151,7 @@ def test_verdict_rules_and_holm_over_the_study():
     undecided = table[table["verdict"] == "undecided"].iloc[0]
     assert undecided["seeds_needed"] >= undecided["seeds_needed_unadjusted"] >= 2
     text = verdicts_markdown(table, design)
-    assert "| A | CR_total (%) | M2 | 3/3 |" in text and "equivalent within ±0.3" in text
+    assert "| A | CR_total (%) | M2 | 3/3 |" in text and "equivalent within ±0.3 pp" in text
     assert "undecided" in plan_text(table, design)
 
 

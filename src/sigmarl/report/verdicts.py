@@ -252,9 +252,15 @@ def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
     return frame
 
 
+def margin_unit(metric: str) -> str:
+    """The margin's unit: a difference of collision rates is in percentage points."""
+    unit = METRICS[metric][2]
+    return "pp" if unit == "%" else unit
+
+
 def verdict_label(row: pd.Series) -> str:
     if row["verdict"] == "equivalent":
-        return f"equivalent within ±{row['margin']:g}"
+        return f"equivalent within ±{row['margin']:g} {margin_unit(row['metric'])}"
     return str(row["verdict"])
 
 
@@ -280,7 +286,7 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
         "|---|---|---|---:|---|---:|---:|---|---:|",
     ]
     if abs(design.alpha - 0.05) > 1e-12:
-        lines[3] = lines[3].replace("95% CI", f"{100 * (1 - design.alpha):g}% CI")
+        lines[2] = lines[2].replace("95% CI", f"{100 * (1 - design.alpha):g}% CI")
     for _, r in table.iterrows():
         unit = METRICS[r["metric"]][2]
         undecided = r["verdict"] == "undecided"
@@ -291,11 +297,11 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
             f"({_p(r['p_difference_holm'])}) | {_p(r['p_equivalence'])} ({_p(r['p_equivalence_holm'])}) | "
             f"{verdict_label(r)} | {needed} |"
         )
-    margins = ", ".join(f"{k} ±{design.margins[k]:g} {METRICS[k][2]}" for k in design.metrics)
+    margins = ", ".join(f"{k} ±{design.margins[k]:g} {margin_unit(k)}" for k in design.metrics)
     lines += [
         "",
         f"seeds: the model's / {design.baseline}'s. difference: model minus {design.baseline}, in the table's "
-        "units, with Welch's t-interval over seed means. better / worse: Welch's two-sided test, Holm-adjusted "
+        "units (pp: percentage points), with Welch's t-interval over seed means. better / worse: Welch's two-sided test, Holm-adjusted "
         f"p ≤ α; equivalent: two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; "
         "otherwise undecided. seeds needed: seeds per model (and per baseline) for power "
         f"{design.power:g} to reach the easier decision, at Holm's level (at α unadjusted in parentheses), "
