@@ -18,7 +18,7 @@ def plan_from_folder(root: Path, models: list[str] | None = None, baseline: str 
     models = model_order(rows, models)
     baseline = baseline or ("M0" if "M0" in models else models[0])
     if baseline not in models or len(models) < 2:
-        raise SigmarlError(f"a plan compares models with the baseline {baseline}; {root} has "
-                           f"{', '.join(models)}")
+        raise SigmarlError(f"a plan compares other models with the baseline {baseline}; the models chosen "
+                           f"from {root} are {', '.join(models)}")
     design = Design(variants=models, baseline=baseline)
     return plan_text(verdict_table(rows, design), design)
