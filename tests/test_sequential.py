@@ -160,3 +160,11 @@ def test_four_equal_variants_sharing_the_baseline_keep_the_family_wise_rate():
         false_seq += any(x in ("better", "worse") for x in seq)
         false_naive += any(x in ("better", "worse") for x in naive)
     assert false_seq / reps <= 0.05 < false_naive / reps
+
+
+def test_next_round_rejects_a_first_look_outside_the_design():
+    from sigmarl.errors import SigmarlError
+
+    values = {"M0": np.zeros((3, 2)), "M2": np.zeros((3, 2))}
+    with pytest.raises(SigmarlError, match="the first look needs 2 to max_seeds"):
+        next_round(_rows(values), Design(variants=["M0", "M2"], max_seeds=10), 11)

@@ -39,6 +39,7 @@ from functools import lru_cache
 import numpy as np
 import pandas as pd
 
+from sigmarl.errors import SigmarlError
 from sigmarl.report.tdist import normal_cdf, normal_ppf
 from sigmarl.report.verdicts import METRICS, Design, Test, comparisons, holm
 
@@ -185,6 +186,8 @@ def next_round(
     unchanged at every look); previous: `key(...)` -> verdict of the earlier looks (decided
     comparisons keep theirs). Pure: the caller records the reasons and trains the seeds.
     """
+    if not 2 <= n_start <= design.max_seeds:
+        raise SigmarlError(f"the first look needs 2 to max_seeds ({design.max_seeds}) seeds per model, got {n_start}")
     previous = dict(previous or {})
     comps = comparisons(rows, design)
     tests = [c.test for c in comps]
