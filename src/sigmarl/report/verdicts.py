@@ -270,6 +270,10 @@ def _p(p: float) -> str:
     return "<0.001" if p < 0.001 else f"{p:.3f}"
 
 
+def _signed(x: float) -> str:
+    return f"{x:+.3f}" if math.isfinite(x) else "–"
+
+
 def _needed(n) -> str:
     return "–" if pd.isna(n) else str(int(n))
 
@@ -293,7 +297,7 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
         needed = f"{_needed(r['seeds_needed'])} ({_needed(r['seeds_needed_unadjusted'])})" if undecided else "–"
         lines.append(
             f"| {r['scenario']} | {r['metric']} ({unit}) | {r['variant']} | {r['n_variant']}/{r['n_baseline']} | "
-            f"{r['difference']:+.3f} [{r['ci_low']:+.3f}, {r['ci_high']:+.3f}] | {_p(r['p_difference'])} "
+            f"{_signed(r['difference'])} [{_signed(r['ci_low'])}, {_signed(r['ci_high'])}] | {_p(r['p_difference'])} "
             f"({_p(r['p_difference_holm'])}) | {_p(r['p_equivalence'])} ({_p(r['p_equivalence_holm'])}) | "
             f"{verdict_label(r)} | {needed} |"
         )
@@ -325,7 +329,7 @@ def plan_text(table: pd.DataFrame, design: Design) -> str:
         share = f"{_share(r['seed_share_variant'])}/{_share(r['seed_share_baseline'])}"
         lines.append(
             f"{r['scenario']:<18}{r['metric']:<10}{r['variant']:<7}{r['n_variant']:>3}/{r['n_baseline']:<3}  "
-            f"{r['difference']:>+10.3f}  {verdict_label(r):<22}{_needed(r['seeds_needed']):>7}"
+            f"{_signed(r['difference']):>10}  {verdict_label(r):<22}{_needed(r['seeds_needed']):>7}"
             f"{_needed(r['seeds_needed_unadjusted']):>8}  {r['decision_planned'] or '–':<12}{share:>11}"
         )
     lines += [
