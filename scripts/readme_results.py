@@ -22,7 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 STUDY = "results/paper-budget"  # relative to ROOT: the report's notes name run folders by it
 # README marker name -> the report file it holds
-BLOCKS = {"results-table": "table.md", "results-statistics": "statistics.md", "results-training": "training.md"}
+BLOCKS = {"results-table": "table.md", "results-statistics": "statistics.md", "results-training": "training.md",
+          "results-verdicts": "verdicts.md"}
 
 
 def report_files() -> dict[str, str]:

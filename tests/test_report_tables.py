@@ -151,7 +151,8 @@ def test_writes_the_table_files(tmp_path):
     report = build_report(hand_rows(), out_dir=tmp_path, latex=True, figures=False)
     assert {p.name for p in tmp_path.iterdir()} == {
         "table.md", "table.csv", "summary.csv", "composite_scores.csv", "table.tex",
-        "improvement.csv", "aggregate_scores.csv", "statistics.md",
+        "improvement.csv", "aggregate_scores.csv", "statistics.md", "verdicts.md", "verdicts.csv",
+        "marl_eval.json", "marl_eval_intervals.json",
     }  # fmt: skip
     assert report.paths["markdown"].read_text() == report.markdown
     assert report.table.values.shape == (len(SCENARIOS) * 6, len(MODELS))
@@ -208,7 +209,7 @@ def test_figures(tmp_path):
     )  # fmt: skip
     rows = hand_rows(models=MODELS[:2])
     report = build_report(rows[rows.scenario.isin(SCENARIOS[:2])], out_dir=tmp_path, curves=curves)
-    for key in ("distributions", "training_curves"):
+    for key in ("distributions", "training_curves", "performance_profiles", "training_band"):
         assert report.paths[key].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

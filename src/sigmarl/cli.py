@@ -102,6 +102,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> None:
+    if args.plan:
+        if not args.source:
+            raise SigmarlError("--plan reads a results folder: give it with --from FOLDER")
+        from sigmarl.compose import compose_config
+        from sigmarl.report.plan import plan_from_folder
+
+        study = compose_config(args.overrides).study
+        print(plan_from_folder([Path(s) for s in args.source], args.models.split(",") if args.models else None,
+                               study=study), end="")
+        return
     from sigmarl.compose import compose_config
     from sigmarl.report.command import make_report, make_report_from_folder
 
@@ -119,6 +129,8 @@ def cmd_report(args: argparse.Namespace) -> None:
         print(report.statistics)
     if "training_md" in report.paths:
         print(report.paths["training_md"].read_text(encoding="utf-8"))
+    if report.verdicts_markdown:
+        print(report.verdicts_markdown)
     print("wrote " + ", ".join(str(p) for p in report.paths.values()))
 
 
@@ -170,6 +182,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--no-figures", action="store_true", help="tables only")
     rp.add_argument("--animations", type=int, nargs="?", const=200, default=0, metavar="STEPS",
                     help="also one GIF per scenario of M0 driving (default 200 steps)")
+    rp.add_argument("--plan", action="store_true",
+                    help="with --from: print each comparison's verdict and the seeds a decision needs, nothing else")
     rp.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. study=quick or tracking.experiment=NAME")
     rp.set_defaults(func=cmd_report)
     return p

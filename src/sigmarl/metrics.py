@@ -18,6 +18,8 @@ class Metric:
     # compared models; 0: not part of it
     composite: int
     collision: bool  # a collision rate: `--trim` drops each evaluation's best and worst simulation
+    # the default equivalence margin of a verdict, in the table's units (a study may declare its own)
+    margin: float = 0.1
     zero_mean_note: str = ""  # why the composite score is undefined when its mean is 0
     meaning: str = ""
 
@@ -27,13 +29,13 @@ METRICS: tuple[Metric, ...] = (
            meaning="steps with at least one agent-agent collision"),
     Metric("CR_AL", "percent", 100.0, True, 0, True,
            meaning="steps with at least one agent-lane (boundary) collision"),
-    Metric("CR_total", "percent", 100.0, True, -1, True,
+    Metric("CR_total", "percent", 100.0, True, -1, True, 0.1,
            "composite score undefined: no model collided (mean CR_total is 0)",
            "CR_AA + CR_AL"),
-    Metric("CD", "cm", 1.0, True, -1, False,
+    Metric("CD", "cm", 1.0, True, -1, False, 0.1,
            "composite score undefined: mean center-line deviation CD is 0",
            "mean distance of the center of gravity to the own route's center line"),
-    Metric("AS", "m/s", 1.0, False, 1, False,
+    Metric("AS", "m/s", 1.0, False, 1, False, 0.01,
            "composite score undefined: no model moved (mean AS is 0)",
            "mean speed over all agent-steps"),
 )

@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import json
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
 
 from sigmarl.ablation import MODELS
-from sigmarl.report.aggregate import cells, model_order, scenario_order, summarise, validate_rows
+from sigmarl.report.aggregate import (
+    cells,
+    model_order,
+    scenario_order,
+    summarise,
+    trim_collisions,
+    validate_rows,
+)
 from sigmarl.report.composite import composite_scores
+from sigmarl.report.marl_eval import interval_data, marl_eval_data
 from sigmarl.report.paper import paper_curves, paper_values
 from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
 from sigmarl.report.tables import (
@@ -21,6 +30,7 @@ from sigmarl.report.tables import (
     to_markdown,
 )
 from sigmarl.report.training import paper_last_rewards, training_markdown, training_summary
+from sigmarl.report.verdicts import Design, verdict_table, verdicts_markdown
 
 # Fixed formatting of every CSV's floats: the same rows give byte-identical files.
 FLOAT_FORMAT = "%.10g"
@@ -40,6 +50,8 @@ class Report:
     training: pd.DataFrame | None = None  # see `training.training_summary` (curves given)
     paths: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    verdicts: pd.DataFrame | None = None  # see `verdicts.verdict_table` (a baseline and a model given)
+    verdicts_markdown: str = ""
 
 
 def _notes(
@@ -108,6 +120,7 @@ def build_report(
     extra_notes: list[str] | None = None,
     order: list[str] | None = None,
     baseline: str | None = None,
+    design: Design | None = None,
 ) -> Report:
     """Aggregate evaluation rows into the paper's Table I and write it to `out_dir`.
 
@@ -126,6 +139,11 @@ def build_report(
     improvement.csv and aggregate_scores.csv with statistics.md (`sigmarl.report.scores`),
     table.tex (latex), training.csv and training.md (curves given; `sigmarl.report.training`),
     distributions.png and training_curves.png (figures; curves given).
+
+    Also (`design`: the verdicts' study parameters; default: the models against M0, or the
+    first model, on CR_total): verdicts.md and verdicts.csv (`sigmarl.report.verdicts`),
+    marl_eval.json and marl_eval_intervals.json (`sigmarl.report.marl_eval`), and with figures
+    performance_profiles.png and training_band.png (curves given).
     """
     rows = validate_rows(rows)
     models = model_order(rows, models, order)
@@ -172,9 +190,15 @@ def build_report(
     if latex:
         paths["latex"] = out_dir / "table.tex"
         paths["latex"].write_text(to_latex(table, ci=ci), encoding="utf-8")
+    verdicts, verdicts_md = _write_extras(rows, models, curves, out_dir, paths, trim=trim, design=design)
     if figures:
         # matplotlib is imported only when drawing: table-only reports stay quick to start
-        from sigmarl.report.figures import plot_distributions, plot_training_curves
+        from sigmarl.report.figures import (
+            plot_distributions,
+            plot_performance_profiles,
+            plot_training_band,
+            plot_training_curves,
+        )
 
         scenarios = scenario_order(rows)
         paths["distributions"] = plot_distributions(
@@ -185,4 +209,31 @@ def build_report(
                 curves, out_dir / "training_curves.png", models,
                 paper=paper_curves() if compare_paper else None,
             )
-    return Report(markdown, table, summary, composite, better, aggregates, statistics, training, paths, notes)
+            paths["training_band"] = plot_training_band(curves, out_dir / "training_band.png", models)
+        paths["performance_profiles"] = plot_performance_profiles(
+            rows[rows["model"].isin(models)], models, scenarios, out_dir / "performance_profiles.png"
+        )
+    return Report(markdown, table, summary, composite, better, aggregates, statistics, training, paths, notes,
+                  verdicts, verdicts_md)
+
+
+def _write_extras(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | None, out_dir: Path,
+                  paths: dict[str, Path], *, trim: bool, design: Design | None
+                  ) -> tuple[pd.DataFrame | None, str]:
+    """The verdict table and the marl-eval export, beside the report's other files."""
+    design = replace(design, variants=list(models)) if design is not None else \
+        Design(variants=models, baseline="M0" if "M0" in models else models[0])
+    verdicts, text = None, ""
+    if design.baseline in models and design.compared:
+        verdicts = verdict_table(trim_collisions(rows) if trim else rows, design)
+        text = verdicts_markdown(verdicts, design)
+        paths["verdicts_md"] = out_dir / "verdicts.md"
+        paths["verdicts"] = out_dir / "verdicts.csv"
+        paths["verdicts_md"].write_text(text, encoding="utf-8")
+        verdicts.to_csv(paths["verdicts"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    chosen = rows[rows["model"].isin(models)]
+    for key, name, data in [("marl_eval", "marl_eval.json", marl_eval_data(chosen, models, curves)),
+                            ("marl_eval_intervals", "marl_eval_intervals.json", interval_data(chosen, models))]:
+        paths[key] = out_dir / name
+        paths[key].write_text(json.dumps(data, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    return verdicts, text

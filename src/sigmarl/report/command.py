@@ -13,6 +13,7 @@ from pathlib import Path
 from sigmarl.config import Config
 from sigmarl.report.build import Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_many, read_results
+from sigmarl.report.verdicts import design_of
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, records
 
@@ -96,7 +97,8 @@ def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[],
         report = build_report(rows, models, out_dir=staging, trim=trim, compare_paper=compare_paper,
                               latex=latex, curves=curves, ci=ci, figures=figures,
                               extra_notes=list(extra_notes), order=list(cfg.study.variants) or None,
-                              baseline=cfg.study.baseline)
+                              baseline=cfg.study.baseline,
+                              design=design_of(cfg.study, models or sorted(set(rows["model"].astype(str)))))
         known = [s for s in report.table.scenarios if s in scenario_names()]  # the maps the rows ran on
         if figures:
             _add_maps(report, staging, known)

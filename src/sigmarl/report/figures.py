@@ -98,3 +98,80 @@ def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | N
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return path
+
+
+PROFILE_BOOT = 1000
+
+
+def profile_thresholds(top: float) -> np.ndarray:
+    """Thresholds (%) from 0 to `top`: even steps up to 0.1 %, then evenly on a log scale, as
+    the axis is drawn (collision rates range from hundredths of a percent to tens)."""
+    linear = np.linspace(0.0, min(top, 0.1), 21)
+    return np.unique(np.concatenate([linear, np.geomspace(0.1, top, 80) if top > 0.1 else []]))
+
+
+def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path) -> Path:
+    """rliable-style performance profiles of CR_total: per model, the fraction of simulations
+    with CR_total above tau, one panel per scenario and one over all scenarios (their mean),
+    with 95% two-level (seeds, then simulations) bootstrap bands. Lower is better."""
+    from sigmarl.report.profiles import scenario_profiles
+    from sigmarl.report.verdicts import seed_values
+
+    values = seed_values(rows, "CR_total")  # in %
+    panels = [*scenarios, "all scenarios"]
+    fig = Figure(figsize=(3.4 * len(panels), 3.0), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(panels), squeeze=False)[0])
+    for ax, panel in zip(axes, panels, strict=True):
+        chosen = scenarios if panel == "all scenarios" else [panel]
+        top = max((float(g.max()) for (m, s), v in values.items() if s in chosen and m in models for g in v),
+                  default=1.0)
+        taus = profile_thresholds(top)
+        for model in models:
+            per_scenario = {s: values[(model, s)] for s in chosen if (model, s) in values}
+            if not per_scenario:
+                continue
+            point, lo, up = scenario_profiles(per_scenario, taus, PROFILE_BOOT, f"{model}|{panel}")
+            line = ax.step(taus, point, where="post", label=model, lw=1.1)[0]
+            ax.fill_between(taus, lo, up, step="post", color=line.get_color(), alpha=0.2, lw=0)
+        ax.set_xscale("symlog", linthresh=0.1)
+        ax.set_xlim(0, taus[-1])
+        ax.set_ylim(0, 1.02)
+        ax.set_title(panel, fontsize=9)
+        ax.set_xlabel("τ: CR_total (%)")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("fraction with CR_total > τ")
+    axes[-1].legend(fontsize=7)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str] | None = None,
+                       n_boot: int = 2000) -> Path:
+    """Mean episode reward per iteration over seeds, with the 95% bootstrap band of that mean
+    over resampled seeds (`profiles.seed_band`); one line per model."""
+    from sigmarl.report import bootstrap as bs
+    from sigmarl.report.profiles import seed_band
+
+    curves = curves.assign(model=curves["model"].astype(str))
+    models = models or list(dict.fromkeys(curves["model"]))
+    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
+    ax = fig.subplots()
+    for model in models:
+        c = curves[curves["model"] == model]
+        if c.empty or "seed" not in c.columns:
+            continue
+        per_seed = c.groupby(["iteration", "seed"])["reward"].mean().unstack("seed")
+        mean, lo, hi = seed_band(per_seed.to_numpy(), n_boot, bs.rng_for("training-band", model))
+        n = per_seed.shape[1]
+        line = ax.plot(per_seed.index, mean, label=f"{model} ({n} seed{'s' if n > 1 else ''})", lw=1.1)[0]
+        if n > 1:
+            ax.fill_between(per_seed.index, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("mean episode reward")
+    ax.set_title("mean over seeds, 95% bootstrap band over seeds", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(ncols=2, fontsize=8)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    return path

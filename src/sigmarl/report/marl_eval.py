@@ -1,0 +1,80 @@
+"""The evaluation as marl-eval's raw-data JSON (Gorsane et al. 2022), and its intervals with
+the real number of runs.
+
+marl-eval reads environment -> task -> algorithm -> run -> step -> metrics, each metric a
+list over evaluation episodes, with the run's final evaluation under "absolute_metrics".
+Here: environment "sigmarl", task = scenario, algorithm = model label, run = "run_<seed>",
+one step ("step_0", its step_count the training iterations when the curves are known, else
+0) and the absolute metrics, both the per-simulation values in the rows' units (collision
+rates as fractions of steps, CD in cm, AS in m/s).
+
+marl-eval's interval helper takes n = 10 runs and z = 1.96 whatever the data; the sidecar
+`marl_eval_intervals.json` gives, per task, algorithm and metric, the mean over seeds of
+each seed's mean, the real n (seeds) and the Student t quantile z = t_(0.975, n - 1) with
+the half-width z * sd / sqrt(n).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from sigmarl.metrics import METRIC_COLUMNS
+from sigmarl.report.tdist import t_ppf
+
+ENVIRONMENT = "sigmarl"
+METRICS = METRIC_COLUMNS
+UNITS = {"CR_total": "fraction of steps", "CR_AA": "fraction of steps", "CR_AL": "fraction of steps",
+         "CD": "cm", "AS": "m/s"}
+
+
+def _clean(values: np.ndarray) -> list[float | None]:
+    return [float(v) if math.isfinite(v) else None for v in values]
+
+
+def marl_eval_data(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | None = None) -> dict:
+    """The nested dict marl-eval reads (JSON-serialisable)."""
+    iterations = {}
+    if curves is not None and len(curves) and "seed" in curves.columns:
+        iterations = curves.groupby(["model", "seed"])["iteration"].max().to_dict()
+    metrics = [m for m in METRICS if m in rows.columns]
+    tasks: dict = {}
+    ordered = rows.sort_values(["seed", "simulation"], kind="stable")
+    for scenario in dict.fromkeys(rows["scenario"]):
+        sc = ordered[ordered["scenario"] == scenario]
+        for model in models:
+            mine = sc[sc["model"] == model]
+            for seed, g in mine.groupby("seed", sort=True):
+                values = {m: _clean(g[m].to_numpy(float)) for m in metrics}
+                step = {"step_count": int(iterations.get((model, seed), 0)), **values}
+                run = {"step_0": step, "absolute_metrics": dict(values)}
+                tasks.setdefault(str(scenario), {}).setdefault(model, {})[f"run_{int(seed)}"] = run
+    return {ENVIRONMENT: tasks}
+
+
+def interval_data(rows: pd.DataFrame, models: list[str], level: float = 0.95) -> dict:
+    """Per task, algorithm and metric: mean over seeds, n seeds, z = t quantile, half-width."""
+    out: dict = {"environment": ENVIRONMENT, "level": level, "units": UNITS,
+                 "note": "mean over seeds of each seed's mean over its simulations; half_width = "
+                         "z * sd(seed means) / sqrt(n), z the Student t quantile with n - 1 degrees "
+                         "of freedom (marl-eval's own helper assumes n = 10 and z = 1.96)",
+                 "tasks": {}}
+    metrics = [m for m in METRICS if m in rows.columns]
+    for scenario in dict.fromkeys(rows["scenario"]):
+        sc = rows[rows["scenario"] == scenario]
+        for model in models:
+            means = sc[sc["model"] == model].groupby("seed")[metrics].mean()
+            if means.empty:
+                continue
+            entry = {}
+            for m in metrics:
+                v = means[m].to_numpy(float)
+                v = v[np.isfinite(v)]
+                n = len(v)
+                z = t_ppf(0.5 + level / 2, n - 1) if n > 1 else None
+                entry[m] = {"mean": float(v.mean()) if n else None, "n": n, "z": z,
+                            "half_width": z * float(v.std(ddof=1)) / math.sqrt(n) if z else None}
+            out["tasks"].setdefault(str(scenario), {})[model] = entry
+    return out

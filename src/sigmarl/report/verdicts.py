@@ -1,0 +1,351 @@
+"""One verdict per comparison (variant against the baseline, per scenario and metric).
+
+The unit of replication is the seed: a seed's value is its mean over its simulations (in the
+table's units: collision rates in %, CD in cm, AS in m/s). For each comparison, with d the
+variant's mean of seed means minus the baseline's and se Welch's standard error of d:
+
+- difference: Welch's two-sided t-test of d = 0;
+- equivalence: two one-sided Welch tests (TOST) of d <= -margin and d >= margin, whose
+  p-value is the larger of the two;
+- the p-values of each kind are Holm-adjusted over all the study's comparisons (variants x
+  scenarios x metrics), so each kind's family-wise error rate is at most alpha.
+
+Rules, in order:
+1. **better** / **worse**: the Holm-adjusted difference p-value is <= alpha; the direction
+   comes from the sign of d and the metric's better direction (lower collision rates and CD,
+   higher AS);
+2. **equivalent within +-margin**: else, the Holm-adjusted TOST p-value is <= alpha;
+3. **undecided**: else; then `seeds_needed` is the seeds per side that a power analysis
+   (power `power`, true difference = d, variances from the two-level components) says the
+   easier of the two decisions needs at Holm's level for the first undecided comparison of
+   its kind (alpha / comparisons of that kind not yet decided); `seeds_needed_unadjusted`
+   the same at alpha itself.
+A comparison with fewer than two seeds on a side has no test (p-values NaN, counted as 1 in
+Holm's family) and is undecided.
+
+The interval of d is Welch's (1 - alpha) t-interval, unadjusted.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from sigmarl.errors import SigmarlError
+from sigmarl.metrics import METRICS as METRIC_RECORDS
+from sigmarl.report.power import seeds_for_difference, seeds_for_equivalence
+from sigmarl.report.tdist import t_cdf, t_ppf, t_sf
+from sigmarl.report.variance import Components, components
+
+# metric -> (factor from the rows' units to the table's, +1 when higher is better, unit), from
+# the metrics' records
+METRICS = {m.name: (m.scale, -1 if m.lower_is_better else +1, {"percent": "%"}.get(m.unit, m.unit))
+           for m in METRIC_RECORDS}
+DEFAULT_MARGINS = {m.name: m.margin for m in METRIC_RECORDS}
+
+COLUMNS = [
+    "scenario", "metric", "variant", "baseline", "n_variant", "n_baseline", "variant_mean",
+    "baseline_mean", "difference", "ci_low", "ci_high", "margin", "p_difference",
+    "p_difference_holm", "p_equivalence", "p_equivalence_holm", "verdict", "seeds_needed",
+    "seeds_needed_unadjusted", "decision_planned", "seed_share_variant", "seed_share_baseline",
+]  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Design:
+    """The study's shape, as plain parameters."""
+
+    variants: Sequence[str]  # ordered; the baseline may be among them
+    baseline: str = "M0"
+    scenarios: Sequence[str] | None = None  # None: every scenario in the rows, in order
+    metrics: Sequence[str] = ("CR_total",)
+    margins: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_MARGINS))
+    alpha: float = 0.05
+    power: float = 0.8
+    max_seeds: int = 10
+
+    def __post_init__(self):
+        unknown = [m for m in self.metrics if m not in METRICS]
+        if unknown:
+            raise SigmarlError(f"no verdicts for metric(s) {', '.join(unknown)}; known: {', '.join(METRICS)}")
+        missing = [m for m in self.metrics if m not in self.margins]
+        if missing:
+            raise SigmarlError(f"no equivalence margin for {', '.join(missing)}")
+        if not 0 < self.alpha < 1 or not 0 < self.power < 1:
+            raise SigmarlError(f"alpha and power must lie in (0, 1), got {self.alpha} and {self.power}")
+
+    @property
+    def compared(self) -> list[str]:
+        return [v for v in self.variants if v != self.baseline]
+
+
+def design_of(study, variants: Sequence[str]) -> Design:
+    """The verdicts' parameters of a study config (`sigmarl.config.StudyConfig`) for the table's
+    columns `variants`: its baseline (or M0, or the first column, when the baseline is absent),
+    metrics, margins (over the metrics' own defaults) and seed cap."""
+    variants = list(variants)
+    baseline = study.baseline if study.baseline in variants else ("M0" if "M0" in variants else variants[0])
+    return Design(variants=variants, baseline=baseline, metrics=tuple(study.metrics),
+                  margins={**DEFAULT_MARGINS, **dict(study.margins)}, max_seeds=int(study.max_seeds))
+
+
+@dataclass(frozen=True)
+class Test:
+    """Welch's tests of one comparison, from the two sides' seed means."""
+
+    n_variant: int
+    n_baseline: int
+    variant_mean: float
+    baseline_mean: float
+    difference: float
+    se: float
+    df: float
+    p_difference: float
+    p_equivalence: float
+
+    def interval(self, level: float) -> tuple[float, float]:
+        if not math.isfinite(self.se):
+            return math.nan, math.nan
+        if self.se == 0:
+            return self.difference, self.difference
+        half = t_ppf(0.5 + level / 2, self.df) * self.se
+        return self.difference - half, self.difference + half
+
+
+def welch(variant: np.ndarray, baseline: np.ndarray, margin: float) -> Test:
+    """Welch's two-sided test of no difference and TOST within +-margin on seed means."""
+    a, b = np.asarray(variant, float), np.asarray(baseline, float)
+    na, nb = len(a), len(b)
+    d = float(a.mean() - b.mean()) if na and nb else math.nan
+    means = (float(a.mean()) if na else math.nan, float(b.mean()) if nb else math.nan)
+    if na < 2 or nb < 2:
+        return Test(na, nb, *means, d, math.nan, math.nan, math.nan, math.nan)
+    va, vb = a.var(ddof=1) / na, b.var(ddof=1) / nb
+    se = math.sqrt(va + vb)
+    if se == 0:  # every seed of both sides gave the same value: no noise to test against
+        return Test(na, nb, *means, d, 0.0, math.inf, float(d == 0), float(abs(d) >= margin))
+    df = (va + vb) ** 2 / (va**2 / (na - 1) + vb**2 / (nb - 1))
+    p_diff = min(1.0, 2 * t_sf(abs(d) / se, df))
+    p_eq = max(t_sf((d + margin) / se, df), t_cdf((d - margin) / se, df))
+    return Test(na, nb, *means, d, se, df, p_diff, p_eq)
+
+
+def holm(p_values: Sequence[float]) -> np.ndarray:
+    """Holm's step-down adjusted p-values: the i-th smallest of m is multiplied by m - i + 1,
+    made non-decreasing along the order and capped at 1. NaN p-values count as 1 in the
+    family (a comparison that could not be tested still is one) and stay NaN."""
+    p = np.asarray(p_values, float)
+    filled = np.where(np.isnan(p), 1.0, p)
+    m = len(p)
+    order = np.argsort(filled, kind="stable")
+    scaled = filled[order] * (m - np.arange(m))
+    adjusted = np.empty(m)
+    adjusted[order] = np.minimum(1.0, np.maximum.accumulate(scaled))
+    return np.where(np.isnan(p), math.nan, adjusted)
+
+
+def seed_values(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str], list[np.ndarray]]:
+    """(model, scenario) -> per seed (ascending) its finite values of `metric`, in the table's units."""
+    scale = METRICS[metric][0]
+    out: dict[tuple[str, str], list[np.ndarray]] = {}
+    ordered = rows.sort_values(["seed", "simulation"], kind="stable")
+    for (model, scenario, _), g in ordered.groupby(["model", "scenario", "seed"], sort=False):
+        v = g[metric].to_numpy(float) * scale
+        v = v[np.isfinite(v)]
+        if len(v):
+            out.setdefault((str(model), str(scenario)), []).append(v)
+    return out
+
+
+@dataclass(frozen=True)
+class Comparison:
+    scenario: str
+    metric: str
+    variant: str
+    test: Test
+    variant_components: Components | None
+    baseline_components: Components | None
+
+
+def comparisons(rows: pd.DataFrame, design: Design) -> list[Comparison]:
+    """Every (scenario, metric, variant) comparison of the design that the rows can make."""
+    scenarios = list(design.scenarios) if design.scenarios is not None else list(dict.fromkeys(rows["scenario"]))
+    out = []
+    for metric in design.metrics:
+        values = seed_values(rows, metric)
+        for scenario in scenarios:
+            base = values.get((design.baseline, scenario))
+            if not base:
+                continue
+            for variant in design.compared:
+                mine = values.get((variant, scenario))
+                if not mine:
+                    continue
+                test = welch(np.array([g.mean() for g in mine]), np.array([g.mean() for g in base]),
+                             design.margins[metric])
+                out.append(Comparison(scenario, metric, variant, test, components(mine), components(base)))
+    return out
+
+
+def decide(
+    tests: Sequence[Test], directions: Sequence[int], alpha: float | Sequence[float]
+) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """The verdict rules 1-3 over a family: verdicts ('better', 'worse', 'equivalent',
+    'undecided') and the Holm-adjusted difference and equivalence p-values. `alpha` may be
+    one level per comparison (a sequential design's nominal levels)."""
+    p_diff = holm([t.p_difference for t in tests])
+    p_eq = holm([t.p_equivalence for t in tests])
+    levels = np.broadcast_to(np.asarray(alpha, float), (len(tests),))
+    verdicts = []
+    for t, sign, pd_, pe, a in zip(tests, directions, p_diff, p_eq, levels, strict=True):
+        if pd_ <= a:
+            verdicts.append("better" if t.difference * sign > 0 else "worse")
+        elif pe <= a:
+            verdicts.append("equivalent")
+        else:
+            verdicts.append("undecided")
+    return verdicts, p_diff, p_eq
+
+
+def plan_seeds(c: Comparison, margin: float, alpha_diff: float, alpha_eq: float, power: float
+               ) -> tuple[int | None, str]:
+    """Seeds per side the easier decision needs (None: none within reach), and which one."""
+    if c.variant_components is None or c.baseline_components is None:
+        return None, ""
+    va, vb = c.variant_components.seed_mean_variance(), c.baseline_components.seed_mean_variance()
+    if math.isnan(va) or math.isnan(vb):  # one seed on a side: no seed-to-seed variance yet
+        return None, ""
+    d = c.test.difference
+    options = [(n, kind) for n, kind in [
+        (seeds_for_difference(d, va, vb, alpha_diff, power), "difference"),
+        (seeds_for_equivalence(d, va, vb, margin, alpha_eq, power), "equivalence"),
+    ] if n is not None]
+    return min(options) if options else (None, "")
+
+
+def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
+    """One row per comparison (COLUMNS), scenarios then metrics then variants in order."""
+    comps = comparisons(rows, design)
+    directions = [METRICS[c.metric][1] for c in comps]
+    verdicts, p_diff, p_eq = decide([c.test for c in comps], directions, design.alpha)
+    m = len(comps)
+    open_diff = m - sum(v in ("better", "worse") for v in verdicts)
+    open_eq = m - sum(v == "equivalent" for v in verdicts)
+    records = []
+    for c, verdict, pd_, pe in zip(comps, verdicts, p_diff, p_eq, strict=True):
+        margin = design.margins[c.metric]
+        lo, hi = c.test.interval(1 - design.alpha)
+        needed, kind = plan_seeds(c, margin, design.alpha / max(open_diff, 1), design.alpha / max(open_eq, 1),
+                                  design.power)
+        unadjusted, _ = plan_seeds(c, margin, design.alpha, design.alpha, design.power)
+        records.append({
+            "scenario": c.scenario, "metric": c.metric, "variant": c.variant, "baseline": design.baseline,
+            "n_variant": c.test.n_variant, "n_baseline": c.test.n_baseline,
+            "variant_mean": c.test.variant_mean, "baseline_mean": c.test.baseline_mean,
+            "difference": c.test.difference, "ci_low": lo, "ci_high": hi, "margin": margin,
+            "p_difference": c.test.p_difference, "p_difference_holm": pd_,
+            "p_equivalence": c.test.p_equivalence, "p_equivalence_holm": pe, "verdict": verdict,
+            "seeds_needed": needed, "seeds_needed_unadjusted": unadjusted, "decision_planned": kind,
+            "seed_share_variant": c.variant_components.seed_share,
+            "seed_share_baseline": c.baseline_components.seed_share,
+        })
+    frame = pd.DataFrame(records, columns=COLUMNS)
+    for col in ("seeds_needed", "seeds_needed_unadjusted"):
+        frame[col] = frame[col].astype("Int64")
+    return frame
+
+
+def margin_unit(metric: str) -> str:
+    """The margin's unit: a difference of collision rates is in percentage points."""
+    unit = METRICS[metric][2]
+    return "pp" if unit == "%" else unit
+
+
+def verdict_label(row: pd.Series) -> str:
+    if row["verdict"] == "equivalent":
+        return f"equivalent within ±{row['margin']:g} {margin_unit(row['metric'])}"
+    return str(row["verdict"])
+
+
+def _p(p: float) -> str:
+    if not math.isfinite(p):
+        return "–"
+    return "<0.001" if p < 0.001 else f"{p:.3f}"
+
+
+def _signed(x: float) -> str:
+    return f"{x:+.3f}" if math.isfinite(x) else "–"
+
+
+def _needed(n) -> str:
+    return "–" if pd.isna(n) else str(int(n))
+
+
+def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
+    """The verdict table as Markdown, with the rules it applied in its notes."""
+    m = len(table)
+    lines = [
+        f"Verdicts against {design.baseline} (seed means compared; {m} comparisons, Holm-corrected; "
+        f"α = {design.alpha:g}):",
+        "",
+        "| Scenario | Metric | Model | seeds | difference [95% CI] | p (Holm) | p equiv. (Holm) | verdict "
+        "| seeds needed (unadj.) |",
+        "|---|---|---|---:|---|---:|---:|---|---:|",
+    ]
+    if abs(design.alpha - 0.05) > 1e-12:
+        lines[2] = lines[2].replace("95% CI", f"{100 * (1 - design.alpha):g}% CI")
+    for _, r in table.iterrows():
+        unit = METRICS[r["metric"]][2]
+        undecided = r["verdict"] == "undecided"
+        needed = f"{_needed(r['seeds_needed'])} ({_needed(r['seeds_needed_unadjusted'])})" if undecided else "–"
+        lines.append(
+            f"| {r['scenario']} | {r['metric']} ({unit}) | {r['variant']} | {r['n_variant']}/{r['n_baseline']} | "
+            f"{_signed(r['difference'])} [{_signed(r['ci_low'])}, {_signed(r['ci_high'])}] | {_p(r['p_difference'])} "
+            f"({_p(r['p_difference_holm'])}) | {_p(r['p_equivalence'])} ({_p(r['p_equivalence_holm'])}) | "
+            f"{verdict_label(r)} | {needed} |"
+        )
+    margins = ", ".join(f"{k} ±{design.margins[k]:g} {margin_unit(k)}" for k in design.metrics)
+    lines += [
+        "",
+        f"seeds: the model's / {design.baseline}'s. difference: model minus {design.baseline}, in the table's "
+        "units (pp: percentage points), with Welch's t-interval over seed means. better / worse: Welch's two-sided test, Holm-adjusted "
+        f"p ≤ α; equivalent: two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; "
+        "otherwise undecided. seeds needed: seeds per model (and per baseline) for power "
+        f"{design.power:g} to reach the easier decision, at Holm's level (at α unadjusted in parentheses), "
+        "from the two-level variance of a seed mean (seed-to-seed plus simulations) and the observed "
+        "difference.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def plan_text(table: pd.DataFrame, design: Design) -> str:
+    """`sigmarl report --plan`: per comparison its verdict, the seeds needed and how much of a
+    seed mean's variance is seed-to-seed."""
+    lines = [
+        f"Seed plan against {design.baseline} (power {design.power:g}, α {design.alpha:g}, "
+        f"Holm over {len(table)} comparisons):",
+        "",
+        f"{'scenario':<18}{'metric':<10}{'model':<7}{'seeds':>7}  {'difference':>10}  {'verdict':<22}"
+        f"{'needed':>7}{'unadj.':>8}  {'to show':<12}{'seed share':>11}",
+    ]
+    for _, r in table.iterrows():
+        share = f"{_share(r['seed_share_variant'])}/{_share(r['seed_share_baseline'])}"
+        lines.append(
+            f"{r['scenario']:<18}{r['metric']:<10}{r['variant']:<7}{r['n_variant']:>3}/{r['n_baseline']:<3}  "
+            f"{_signed(r['difference']):>10}  {verdict_label(r):<22}{_needed(r['seeds_needed']):>7}"
+            f"{_needed(r['seeds_needed_unadjusted']):>8}  {r['decision_planned'] or '–':<12}{share:>11}"
+        )
+    lines += [
+        "",
+        "needed: seeds per model for the easier decision at Holm's level (unadj.: at α); to show: which one; "
+        f"seed share: the part of a seed mean's variance that is seed-to-seed (the model's / {design.baseline}'s).",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _share(x: float) -> str:
+    return "–" if not math.isfinite(x) else f"{100 * x:.0f}%"
