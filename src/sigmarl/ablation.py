@@ -47,6 +47,22 @@ SCENARIOS: dict[str, tuple[str, int]] = {
     "Proc-Intersection": ("intersection", 6),
     "Proc-On-Ramp": ("on_ramp", 8),
     "Proc-Roundabout": ("roundabout", 8),
+    # SigmaRL's twelve later hand-drawn maps (conf/scenario/<name>.yaml: the authors' agent
+    # counts), and the whole CPM map with denser traffic than the paper's 15.
+    "interchange_1": ("interchange_1", 8),
+    "interchange_2": ("interchange_2", 10),
+    "interchange_3": ("interchange_3", 10),
+    "intersection_1": ("intersection_1", 6),
+    "intersection_3": ("intersection_3", 8),
+    "intersection_4": ("intersection_4", 8),
+    "intersection_5": ("intersection_5", 10),
+    "intersection_6": ("intersection_6", 10),
+    "intersection_7": ("intersection_7", 8),
+    "intersection_8": ("intersection_8", 10),
+    "on_ramp_2_multilane": ("on_ramp_2_multilane", 10),
+    "roundabout_2": ("roundabout_2", 10),
+    "CPM-30": ("cpm", 30),
+    "CPM-45": ("cpm", 45),
 }
 PAPER_SCENARIOS = ("CPM", "Intersection", "On-Ramp", "Roundabout")  # Table I, the default
 

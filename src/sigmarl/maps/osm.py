@@ -35,6 +35,7 @@ import numpy as np
 
 from sigmarl.errors import MapError
 from sigmarl.maps.model import Lanelet, RoadMap, Route
+from sigmarl.maps.multilane import find_side_by_side
 from sigmarl.maps.routes import build_route, enumerate_routes
 
 _TOL = 1e-6  # points closer than this coincide
@@ -340,6 +341,7 @@ def load_osm(
         lanelets, _ = _lanelet2_lanelets(osm, lane_width)
     elif any("lanes" in tags for _, tags in osm.ways.values()):
         lanelets = _centerline_lanelets(osm, lane_width)
+        find_side_by_side(lanelets, lane_width)  # the dialect has no adjacency: geometry tells
     else:
         raise MapError(
             f"{path}: no lanelets found: expected relations tagged type=lanelet (Lanelet2) "
