@@ -10,9 +10,10 @@ map `<key>`:
 * `conf/scenario/<key>.yaml`: the scenario, with the authors' agent count.
 
 Run once, when the facts change; the written files are committed and the package never
-reads the JSON:
+reads the JSON. `--figure` then draws the twelve, as shipped, into one picture:
 
     python scripts/write_more_maps.py tests/data/sigmarl_more_maps.json
+    python scripts/write_more_maps.py tests/data/sigmarl_more_maps.json --figure docs/maps/more_maps.png
 """
 
 from __future__ import annotations
@@ -69,8 +70,28 @@ def write_more_maps(facts_json: str | Path, root: Path = ROOT) -> list[Path]:
     return out
 
 
+def draw_more_maps(facts_json: str | Path, out: str | Path) -> Path:
+    """The shipped maps (conf/map/<key>.yaml) in a 4 x 3 grid, each with its routes."""
+    from sigmarl.compose import compose_config
+    from sigmarl.maps import load_map
+    from sigmarl.maps.plot import save_map_grid
+
+    facts = json.loads(Path(facts_json).read_text(encoding="utf-8"))["maps"]
+    maps = []
+    for key, m in facts.items():
+        roadmap = load_map(compose_config([f"map={key}"]).map)
+        maps.append((f"{key}: {len(roadmap.routes)} routes, lane {m['lane_width']:.2f} m, "
+                     f"{m['n_agents']} agents", roadmap))
+    return save_map_grid(out, maps, cols=4)
+
+
 if __name__ == "__main__":
-    if len(sys.argv) not in (2, 3):
-        sys.exit("usage: python scripts/write_more_maps.py <sigmarl_more_maps.json> [<repository root>]")
-    for p in write_more_maps(sys.argv[1], Path(sys.argv[2]) if len(sys.argv) == 3 else ROOT):
-        print(f"wrote {p}")
+    args = sys.argv[1:]
+    if len(args) == 3 and args[1] == "--figure":
+        print(f"wrote {draw_more_maps(args[0], args[2])}")
+    elif len(args) in (1, 2):
+        for p in write_more_maps(args[0], Path(args[1]) if len(args) == 2 else ROOT):
+            print(f"wrote {p}")
+    else:
+        sys.exit("usage: python scripts/write_more_maps.py <sigmarl_more_maps.json> "
+                 "[<repository root> | --figure <out.png>]")

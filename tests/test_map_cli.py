@@ -18,7 +18,10 @@ def assert_png(path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "name", ["cpm", "paper_intersection", "paper_on_ramp", "paper_roundabout", "intersection", "on_ramp", "roundabout"]
+    "name", ["cpm", "paper_intersection", "paper_on_ramp", "paper_roundabout", "intersection", "on_ramp", "roundabout",
+             "interchange_1", "interchange_2", "interchange_3", "intersection_1", "intersection_3", "intersection_4",
+             "intersection_5", "intersection_6", "intersection_7", "intersection_8", "on_ramp_2_multilane",
+             "roundabout_2"]
 )
 def test_show_writes_png(tmp_path, capsys, name):
     out = tmp_path / f"{name}.png"

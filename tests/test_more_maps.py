@@ -214,6 +214,28 @@ def test_authors_agent_count_spawns_and_drives(key):
     env.close()
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("n", [30, 45])
+def test_dense_cpm_spawns_and_drives(n):
+    """CPM-30 and CPM-45 under the evaluation's protocol: n vehicles on the CPM map's seven
+    loops in each of 32 simulations, MIN_GAP apart; then 20 steps at a constant action, with
+    the respawns the collisions cause, run."""
+    cfg = compose_config(["obs.noise=0", "threads=1"])
+    assert SCENARIOS[f"CPM-{n}"] == ("cpm", n)
+    env = make_env(cfg, num_envs=cfg.eval.n_sims, n_agents=n, mode="test", max_steps=20,
+                   map_cfg=compose_config(["map=cpm"]).map, seed=cfg.eval.seed)
+    td = env.reset()
+    sc = env.scenario
+    d = torch.cdist(sc.pos, sc.pos) + torch.eye(n) * 1e9
+    assert float(d.min()) >= MIN_GAP - 1e-6
+    action = torch.tensor([0.5, 0.0]).expand(cfg.eval.n_sims, n, 2).clone()
+    for _ in range(20):
+        td.set(("agents", "action"), action)
+        td = env.step_mdp(env.step(td))
+    assert torch.isfinite(td.get(("agents", "observation"))).all()
+    env.close()
+
+
 # --- side-by-side lanes (the loader's new part) ------------------------------------------
 
 def test_intersection_3_has_two_two_lane_one_way_roads():
