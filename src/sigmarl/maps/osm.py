@@ -6,7 +6,8 @@
   (the normalised mean of the adjacent segments' normals; at a node where
   ways join, the mean over every segment that touches the node, so joined
   lanelets share their boundary end points). A way whose last node is
-  another way's first node is that way's predecessor.
+  another way's first node is that way's predecessor. Same-direction lanes
+  drawn side by side are found from their geometry (`sigmarl.maps.multilane`).
 * Standard Lanelet2: every `relation` tagged `type=lanelet` with `left` and
   `right` member ways. The bounds may be stored in either direction; they are
   oriented so that `left` lies left of the driving direction. A bound with
