@@ -320,6 +320,24 @@ def test_three_lanes_one_split_by_hand(tmp_path):
         np.testing.assert_allclose(r.entry.numpy() - shift, [[0.0, 0.5], [0.0, -0.1]], atol=1e-9)
 
 
+def test_a_lane_beside_part_of_another_by_hand(tmp_path):
+    """Lane 1 runs east along y = 0 from x = 0 to 2; lane 2 (a pocket, w = 0.2) runs beside
+    it at y = 0.2 from x = 0.5 to 1.5 only. Route 1's left boundary is its own edge (y = 0.1),
+    the pocket's left edge (y = 0.3) along the pocket, then its own edge again; route 2's
+    right boundary is lane 1's right edge (y = -0.1), cut to the pocket's stretch."""
+    x = np.linspace(0.0, 2.0, 11)
+    pocket = np.linspace(0.5, 1.5, 6)
+    lane = {1: np.stack([x, 0 * x], -1), 2: np.stack([pocket, 0.2 + 0 * pocket], -1)}
+    m = load_osm(save_centerline_osm(lane, tmp_path / "pocket.osm"), lane_width=0.2)
+    assert (m.lanelets[1].beside_left, m.lanelets[2].beside_right) == ([2], [1])
+    shift = m.lanelets[1].center[0] - lane[1][0]
+    left = LineString(m.route("1").left.numpy()[:-1] - shift)
+    by_hand = LineString([(0, 0.1), (0.5, 0.1), (0.5, 0.3), (1.5, 0.3), (1.5, 0.1), (2, 0.1)])
+    assert left.hausdorff_distance(by_hand) < 1e-9 and left.length == pytest.approx(by_hand.length, abs=1e-9)
+    right = LineString(m.route("2").right.numpy()[:-1] - shift)
+    assert right.hausdorff_distance(LineString([(0.5, -0.1), (1.5, -0.1)])) < 1e-9
+
+
 def test_project_and_substring_agree_with_shapely():
     rng = np.random.default_rng(0)
     for _ in range(20):
