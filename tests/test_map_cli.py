@@ -18,7 +18,10 @@ def assert_png(path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "name", ["cpm", "paper_intersection", "paper_on_ramp", "paper_roundabout", "intersection", "on_ramp", "roundabout"]
+    "name", ["cpm", "paper_intersection", "paper_on_ramp", "paper_roundabout", "intersection", "on_ramp", "roundabout",
+             "interchange_1", "interchange_2", "interchange_3", "intersection_1", "intersection_3", "intersection_4",
+             "intersection_5", "intersection_6", "intersection_7", "intersection_8", "on_ramp_2_multilane",
+             "roundabout_2"]
 )
 def test_show_writes_png(tmp_path, capsys, name):
     out = tmp_path / f"{name}.png"
@@ -51,13 +54,20 @@ def test_list_prints_every_map(capsys):
     assert main(["maps", "list"]) == 0
     rows = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines()[1:]}
     assert set(rows) == {"cpm", "cpm_intersection", "intersection", "on_ramp", "roundabout",
-                         "paper_intersection", "paper_on_ramp", "paper_roundabout"}
+                         "paper_intersection", "paper_on_ramp", "paper_roundabout", "interchange_1",
+                         "interchange_2", "interchange_3", "intersection_1", "intersection_3",
+                         "intersection_4", "intersection_5", "intersection_6", "intersection_7",
+                         "intersection_8", "on_ramp_2_multilane", "roundabout_2"}
     # lanelets and routes columns
     assert rows["cpm"][1:3] == ["104", "7"]
     assert rows["cpm_intersection"][2] == "24"
     assert [rows[f"paper_{k}"][1:3] for k in ("intersection", "on_ramp", "roundabout")] == [
         ["11", "6"], ["7", "4"], ["9", "5"]]
     assert rows["intersection"][1:3] == ["20", "12"]
+    # SigmaRL's later maps: lanelets, routes and lane width (the facts' counts)
+    assert rows["interchange_2"][1:3] + rows["interchange_2"][-1:] == ["16", "16", "0.20"]
+    assert rows["intersection_4"][1:3] + rows["intersection_4"][-1:] == ["20", "12", "0.30"]
+    assert rows["on_ramp_2_multilane"][1:3] == ["26", "21"]
     assert rows["on_ramp"][1:3] == ["5", "3"]
     assert rows["roundabout"][1:3] == ["24", "16"]
 

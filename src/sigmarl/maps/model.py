@@ -32,6 +32,10 @@ class Lanelet:
     adj_left_same: bool = True
     adj_right: int | None = None
     adj_right_same: bool = True
+    # Center-line maps: same-direction lanelets running beside this one, in driving order
+    # (they may cover only part of it; see sigmarl.maps.multilane).
+    beside_left: list[int] = field(default_factory=list)
+    beside_right: list[int] = field(default_factory=list)
 
     @property
     def center(self) -> np.ndarray:

@@ -6,7 +6,8 @@
   (the normalised mean of the adjacent segments' normals; at a node where
   ways join, the mean over every segment that touches the node, so joined
   lanelets share their boundary end points). A way whose last node is
-  another way's first node is that way's predecessor.
+  another way's first node is that way's predecessor. Same-direction lanes
+  drawn side by side are found from their geometry (`sigmarl.maps.multilane`).
 * Standard Lanelet2: every `relation` tagged `type=lanelet` with `left` and
   `right` member ways. The bounds may be stored in either direction; they are
   oriented so that `left` lies left of the driving direction. A bound with
@@ -35,6 +36,7 @@ import numpy as np
 
 from sigmarl.errors import MapError
 from sigmarl.maps.model import Lanelet, RoadMap, Route
+from sigmarl.maps.multilane import find_side_by_side
 from sigmarl.maps.routes import build_route, enumerate_routes
 
 _TOL = 1e-6  # points closer than this coincide
@@ -340,6 +342,7 @@ def load_osm(
         lanelets, _ = _lanelet2_lanelets(osm, lane_width)
     elif any("lanes" in tags for _, tags in osm.ways.values()):
         lanelets = _centerline_lanelets(osm, lane_width)
+        find_side_by_side(lanelets, lane_width)  # the dialect has no adjacency: geometry tells
     else:
         raise MapError(
             f"{path}: no lanelets found: expected relations tagged type=lanelet (Lanelet2) "

@@ -12,6 +12,7 @@ import torch
 
 from sigmarl.errors import MapError
 from sigmarl.maps.model import EXTENSION_LENGTH, RESAMPLE_STEP, Lanelet, Route
+from sigmarl.maps.multilane import corridor_side
 
 _JOIN_TOL = 1e-6  # consecutive polylines sharing an end point
 
@@ -151,9 +152,10 @@ def build_route(
     center = join_polylines(lanelets[i].center for i in ids)
     lefts, rights = [], []
     for i in ids:
-        lm, rm = corridor_members(lanelets[i], lanelets)
-        lefts.append(lanelets[lm].left)
-        rights.append(lanelets[rm].right)
+        la = lanelets[i]
+        lm, rm = corridor_members(la, lanelets)
+        lefts.append(corridor_side(la, "left", lanelets) if la.beside_left else lanelets[lm].left)
+        rights.append(corridor_side(la, "right", lanelets) if la.beside_right else lanelets[rm].right)
     left, right = join_polylines(lefts), join_polylines(rights)
     if loop:
         center = join_polylines([center, center[:1]])
