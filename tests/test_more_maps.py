@@ -20,7 +20,6 @@ import torch
 from shapely import ops
 from shapely.geometry import LineString, Point, Polygon
 
-from sigmarl.scenarios import scenario
 from sigmarl.compose import compose_config
 from sigmarl.env import make_env
 from sigmarl.env.spawn import MIN_GAP
@@ -28,6 +27,7 @@ from sigmarl.maps import load_map
 from sigmarl.maps.multilane import project, substring
 from sigmarl.maps.osm import load_osm, save_centerline_osm
 from sigmarl.maps.routes import enumerate_routes
+from sigmarl.scenarios import scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data"
