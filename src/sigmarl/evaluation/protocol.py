@@ -25,6 +25,7 @@ from sigmarl.ablation import (
     obs_strategies,
 )
 from sigmarl.config import Config, EvalConfig, as_dict
+from sigmarl.env.paper_rules import rules_label
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
@@ -77,6 +78,8 @@ def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] |
     rows.insert(0, "model", model_label(train_cfg.obs))
     rows.insert(1, "obs", obs_strategies(train_cfg.obs))
     rows.insert(2, "seed", int(train_cfg.seed))
+    # the rules the policy was trained and evaluated under (the metrics are always ours)
+    rows.insert(3, "rules", rules_label(train_cfg.rules))
     return rows, state
 
 
@@ -127,6 +130,8 @@ def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) ->
     _write_atomic(rows_file, rows.to_csv(index=False))
     # `rules`: which environment rules measured them (`report --from` leaves out older ones)
     meta = {**identity, "rules": RULES_REVISION, "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
+    # `rules_label`: the policy's rules switches (`ours`, `paper` or those on; old rows: ours)
+    meta["rules_label"] = str(rows["rules"].iloc[0]) if "rules" in rows.columns and len(rows) else "ours"
     _write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
 
 

@@ -41,7 +41,7 @@ RUN_ID_FILE = "mlflow_run_id"
 CONFIG_FILE = "config.yaml"
 # what a resume must share with the interrupted run (anything else, e.g. threads, device,
 # evaluation settings, may change); ppo.stop_after is the interruption itself
-RESUME_MUST_MATCH = ("map.", "obs.", "env.", "network.", "ppo.", "seed")
+RESUME_MUST_MATCH = ("map.", "obs.", "env.", "network.", "ppo.", "seed", "rules.")
 
 
 @dataclass
