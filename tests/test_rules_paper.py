@@ -14,13 +14,21 @@ import dataclasses
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 import yaml
 
 from sigmarl.compose import conf_dir
 from sigmarl.config import Config, RulesConfig
-from sigmarl.env.paper_rules import MEASUREMENT_SWITCHES, PaperRules, for_evaluation, rules_label
+from sigmarl.env.paper_rules import (
+    MEASUREMENT_SWITCHES,
+    PaperRules,
+    densify,
+    for_evaluation,
+    rules_label,
+)
+from sigmarl.evaluation.protocol import rows_rules
 from sigmarl.maps.model import Lanelet, RoadMap
 from sigmarl.maps.routes import build_route
 
@@ -57,6 +65,13 @@ def test_rules_label_and_what_evaluation_keeps():
     assert not any(getattr(cfg.rules, k) for k in MEASUREMENT_SWITCHES)
     # ... under the dynamics and observation the policy was trained with
     assert all(getattr(cfg.rules, k) for k in ALL if k not in MEASUREMENT_SWITCHES)
+
+
+def test_rows_without_a_rules_column_mean_ours():
+    old = pd.DataFrame({"model": ["M0", "M0"], "CR_AA": [0.0, 0.1]})
+    assert rows_rules(old).tolist() == ["ours", "ours"]
+    new = old.assign(rules="paper")
+    assert rows_rules(pd.concat([old, new], ignore_index=True)).tolist() == ["ours", "ours", "paper", "paper"]
 
 
 # ---- 1. dynamics ---------------------------------------------------------------------------
@@ -267,6 +282,26 @@ def test_m4_boundary_points_through_each_boundarys_own_closest_segment(env_facto
     xs = [0.96, 1.04, 1.12, 1.20, 1.28]
     assert left.tolist() == pytest.approx(points(xs, 0.225), abs=1e-6)
     assert right.tolist() == pytest.approx(points(xs, -0.075), abs=1e-6)
+
+
+def test_long_raw_segments_are_cut_into_0_1_m_pieces(env_factory, kit):
+    """Our copies of the paper's test maps are simplified (a straight stretch is one segment);
+    the paper's vertices were about 0.1 m apart, so segments over 0.2 m are cut into equal
+    pieces of at most 0.1 m. On a road drawn with one 2 m segment per lanelet, an agent at
+    x = 1.01 is on piece [1.0, 1.1] (vertex 10): reference points at vertices 12, 14, 16
+    (x = 1.2, 1.4, 1.6) and M4's boundary points at vertices 9..13 (x = 0.9 .. 1.3)."""
+    dense, first, pieces = densify(np.array([[0.0, 0.0], [0.15, 0.0], [0.65, 0.0], [0.8, 0.0]]))
+    assert dense[:, 0].tolist() == pytest.approx([0.0, 0.15, 0.25, 0.35, 0.45, 0.55, 0.65, 0.8])
+    assert (first.tolist(), pieces.tolist()) == ([0, 1, 6], [1, 5, 1])
+    road = kit.straight_road_map(0.075)
+    for la in road.lanelets.values():
+        la.left, la.right = la.left[[0, -1]], la.right[[0, -1]]
+    road = RoadMap("coarse", road.lanelets, [build_route("coarse", [1, 2], road.lanelets)], 0.15, "tests")
+    d = env_factory(["obs=no_distance_to_boundaries", "rules.raw_center_line=true", "rules.own_boundary_index=true"],
+                    num_envs=1, n_agents=1, road_map=road)
+    obs = d.place([[1.01, 0.0]], [0.0])[0, 0]
+    assert obs[1:7:2].tolist() == pytest.approx([(x - 1.01) / 1.6 for x in (1.2, 1.4, 1.6)], abs=1e-6)
+    assert obs[8:18:2].tolist() == pytest.approx([(x - 1.01) / 1.6 for x in (0.9, 1.0, 1.1, 1.2, 1.3)], abs=1e-6)
 
 
 # ---- 9. bird's-eye view scale in evaluation -------------------------------------------------

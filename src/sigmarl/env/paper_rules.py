@@ -34,6 +34,10 @@ COMMAND_LIMIT = 1.0  # m/s, the paper's speed command range (its effective top s
 RAW_EXTENSION = (0.8, 0.1)  # m: length, vertex spacing
 RAW_WINDOW = (-2, 10)  # raw center vertices kept around a resampled point's raw segment
 RAW_SEGMENTS = 5  # of which the first five segments are searched for the closest one
+# The paper's test maps had vertices about 0.1 m apart; ours are simplified to within 2 mm of
+# them (straight stretches one segment, up to 2.2 m), so segments longer than 0.2 m are cut
+# into equal pieces of at most 0.1 m (CPM's vertices, at most 0.155 m apart, stay the paper's).
+DENSIFY = (0.2, 0.1)  # m: longest segment kept, piece length
 SIDE_VERTICES = (-1, 4)  # M4's boundary vertices: one before to three after the closest segment's start
 # Switches that would change what an evaluation measures: evaluation keeps them off.
 MEASUREMENT_SWITCHES = ("strict_crossings", "env_lane_flag", "stale_respawn_obs")
@@ -81,9 +85,9 @@ def for_evaluation(cfg: Any) -> Any:
 def test_world(road_map: RoadMap) -> tuple[float, float]:
     """The world size a map's bird's-eye view is divided by under `test_world_size`: the
     bounding box widened by its distance from the origin on the far side too (4.5 x 4.0 m on
-    CPM, whose points span 0.03..4.47 x 0.03..3.97)."""
+    CPM, whose points span 0.03..4.47 x 0.03..3.97); a map reaching below 0: its box."""
     xmin, ymin, xmax, ymax = road_map.bounds
-    return float(xmin + xmax), float(ymin + ymax)
+    return (float(xmax + xmin if xmin >= 0 else xmax - xmin), float(ymax + ymin if ymin >= 0 else ymax - ymin))
 
 
 # ---- dynamics ------------------------------------------------------------------------------
@@ -147,19 +151,37 @@ def strict_lane_crossings(corners: torch.Tensor, bounds: torch.Tensor) -> torch.
 
 
 # ---- the paper's geometry on raw map vertices ----------------------------------------------
+def densify(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The polyline with every segment longer than DENSIFY[0] cut into equal pieces of at most
+    DENSIFY[1]; and per original segment its first piece's index and its number of pieces."""
+    seg = np.diff(points, axis=0)
+    length = np.linalg.norm(seg, axis=-1)
+    pieces = np.where(length > DENSIFY[0] + 1e-9, np.ceil(length / DENSIFY[1] - 1e-9), 1).astype(int)
+    parts = [points[j] + np.arange(n)[:, None] / n * seg[j] for j, n in enumerate(pieces)]
+    dense = np.concatenate([*parts, points[-1:]])
+    return dense, np.concatenate([[0], np.cumsum(pieces)[:-1]]), pieces
+
+
 def _raw_center(road_map: RoadMap, route) -> np.ndarray:
     from sigmarl.maps.routes import extend_straight, join_polylines
 
     line = join_polylines(road_map.lanelets[i].center for i in route.lanelet_ids)
     if route.is_loop:
-        return join_polylines([line, line[:1]])
-    return extend_straight(line, *RAW_EXTENSION)
+        line = join_polylines([line, line[:1]])
+    line = densify(line)[0]
+    return line if route.is_loop else extend_straight(line, *RAW_EXTENSION)
 
 
 def _indices(j: torch.Tensor, n: torch.Tensor, loop: torch.Tensor) -> torch.Tensor:
     """Vertex indices j [...] on polylines of n vertices: wrapped on closed loops (whose last
     vertex repeats the first), clamped otherwise."""
     return torch.where(loop, torch.remainder(j, n - 1), j.clamp(min=0).minimum(n - 1))
+
+
+def _pad_ids(ids: list[np.ndarray], n_routes: int) -> torch.Tensor:
+    """Per-segment integers of each route's two boundaries, padded: [R, 2, S]."""
+    n = max(len(i) for i in ids)
+    return torch.as_tensor(np.stack([np.pad(i, (0, n - len(i)), mode="edge") for i in ids])).view(n_routes, 2, n)
 
 
 def _pad(lines: list[np.ndarray]) -> tuple[torch.Tensor, torch.Tensor]:
@@ -193,10 +215,14 @@ class RawGeometry:
         self.ref_steps = torch.arange(1, n_ref + 1, device=device) * ref_stride
         if RAW_SEGMENTS - 1 + int(self.ref_steps[-1]) >= RAW_WINDOW[1] - RAW_WINDOW[0] or first >= RAW_SEGMENTS:
             raise ValueError("the raw reference points reach past the raw center-line window")
-        # M4: the corridor boundaries as raw vertices, and the boundary windows' segment ids.
-        bounds, n_bounds = _pad([b.numpy() for r in routes for b in (r.left, r.right)])
+        # M4: the corridor boundaries as (densified) raw vertices, where each raw segment's
+        # pieces start, and the boundary windows' segment ids.
+        dense = [densify(b.numpy()) for r in routes for b in (r.left, r.right)]
+        bounds, n_bounds = _pad([d[0] for d in dense])
         self.bound_points = bounds.view(len(routes), 2, -1, 2).to(dtype=dtype, device=device)
         self.n_bound = n_bounds.view(len(routes), 2).to(device)
+        first, pieces = (_pad_ids([d[k] for d in dense], len(routes)).to(device) for k in (1, 2))
+        self.piece_first, self.pieces = first, pieces  # [R, 2, S]
         self.loop = bank.is_loop
         self.bound_ids = bank._bound_window[bank.reach].flatten(0, 1)  # [R * M, 2, S_w]
         self.bound_table = bank.boundary_window_table(bank.reach)  # [R * M, 5, 2, S_w]
@@ -213,8 +239,15 @@ class RawGeometry:
     def side_points(self, pos: torch.Tensor, route: torch.Tensor, rows: torch.Tensor) -> torch.Tensor:
         """[E, A, 2, 5, 2]: per side, the raw boundary vertices from one before to three after
         the start of that boundary's own closest segment (within the boundary window)."""
-        _, seg = nearest_on_segments(pos.unsqueeze(-2), self.bound_table[rows])  # [E, A, 2, 1]
-        start = self.bound_ids[rows].gather(-1, seg)  # [E, A, 2, 1] segment id = its start vertex
+        table = self.bound_table[rows]  # [E, A, 5, 2, S_w]
+        _, seg = nearest_on_segments(pos.unsqueeze(-2), table)  # [E, A, 2, 1]
+        j = self.bound_ids[rows].gather(-1, seg)  # [E, A, 2, 1] raw segment id
+        # the piece of that segment the closest point lies on: its projection t in [0, 1]
+        ax, ay, dx, dy, inv = table.gather(-1, seg.unsqueeze(-3).expand(*seg.shape[:-2], 5, 2, 1)).unbind(-3)
+        t = (((pos[..., 0, None, None] - ax) * dx + (pos[..., 1, None, None] - ay) * dy) * inv).clamp(0, 1)
+        side = torch.arange(2, device=pos.device)[:, None]
+        n = self.pieces[route[..., None, None], side, j]
+        start = self.piece_first[route[..., None, None], side, j] + (t * n).long().clamp(max=n - 1)
         idx = _indices(start + self.side_offsets, self.n_bound[route].unsqueeze(-1),
                        self.loop[route][..., None, None])  # [E, A, 2, 5]
         points = self.bound_points[route]  # [E, A, 2, V, 2]

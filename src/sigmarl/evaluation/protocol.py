@@ -83,6 +83,14 @@ def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] |
     return rows, state
 
 
+def rows_rules(rows: pd.DataFrame) -> pd.Series:
+    """The rules each evaluation row's policy ran under (`ours`, `paper` or the switches on):
+    rows written before the `rules` column existed were all measured under ours."""
+    if "rules" not in rows.columns:
+        return pd.Series("ours", index=rows.index, name="rules")
+    return rows["rules"].fillna("ours")
+
+
 def rows_file_for(checkpoint: Path, cfg: Config) -> Path:
     """Where `sigmarl evaluate` keeps the rows: evaluation_rows.csv beside the checkpoint,
     unless that holds another protocol's rows (then evaluation_rows-<protocol key>.csv)."""
