@@ -67,6 +67,16 @@ def test_rules_label_and_what_evaluation_keeps():
     assert all(getattr(cfg.rules, k) for k in ALL if k not in MEASUREMENT_SWITCHES)
 
 
+def test_resuming_under_other_rules_is_a_config_change():
+    from sigmarl.config import as_dict
+    from sigmarl.training.loop import config_changes
+
+    saved = as_dict(Config())
+    del saved["rules"]  # a checkpoint from before the rules existed: ours
+    assert config_changes(saved, Config()) == []
+    assert config_changes(saved, Config(rules=RulesConfig(drag_dynamics=True))) == ["rules.drag_dynamics"]
+
+
 def test_rows_without_a_rules_column_mean_ours():
     old = pd.DataFrame({"model": ["M0", "M0"], "CR_AA": [0.0, 0.1]})
     assert rows_rules(old).tolist() == ["ours", "ours"]
