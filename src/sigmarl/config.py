@@ -159,6 +159,40 @@ class StudyConfig:
 
 
 @dataclass
+class RulesConfig:
+    """The paper's code where ours differs, one switch per difference: all off (`rules=ours`)
+    is our environment, all on (`rules=paper`) the paper's. Evaluation keeps the dynamics and
+    observation switches of the checkpoint it evaluates; it always measures with our
+    contacts, per-agent flags and fresh observations (`sigmarl.env.paper_rules`)."""
+
+    # paper: speed command in [-1, 1]; VMAS drag 0.25 makes v = delta/dt - 0.25 v_prev (steady
+    # 0.8 c through an alternating transient c, 0.75 c, 0.81 c, ...); the yaw rate likewise
+    drag_dynamics: bool = False
+    speed_normaliser_one: bool = False  # paper: observed speeds and velocities / 1.0 (ours / 0.8)
+    unsigned_speed: bool = False  # paper: ego view observes |v| (ours the signed forward speed)
+    # paper: ego view observes another's velocity as |v_j| (cos, sin)(psi_j - psi_i), along its
+    # heading and unsigned (ours: its velocity vector along its course, in the ego frame)
+    others_velocity_heading: bool = False
+    unwrapped_headings: bool = False  # paper: headings and relative headings never wrapped
+    one_sided_noise: bool = False  # paper: + obs.noise x U[0, 1) (mean +0.01; ours zero-mean)
+    # paper: center line at raw map vertices; reference points the vertices +2, +4, +6 from
+    # the start of the closest segment; center-line distance and progress on that polyline
+    raw_center_line: bool = False
+    # paper (M4): 5 raw boundary vertices, one before to three after the start of the
+    # boundary's own closest segment (ours: resampled, through the center-line index)
+    own_boundary_index: bool = False
+    test_world_size: bool = False  # paper: bird's-eye view / the test map's size in evaluation
+    # paper: collisions are strict crossings of edges (agent-agent: the rectangles' edges;
+    # agent-lane: rectangle edges against the whole raw boundary polylines); touching and
+    # containment do not count
+    strict_crossings: bool = False
+    env_lane_flag: bool = False  # paper: the lane-collision info flag is per environment
+    lagged_steering: bool = False  # paper: steering penalty on delta_{t-1} - delta_{t-2}
+    timeout_terminal: bool = False  # paper: a training time-out is terminal (ours: truncated)
+    stale_respawn_obs: bool = False  # paper: test-mode respawns return the pre-respawn observation
+
+
+@dataclass
 class Config:
     map: MapConfig = field(default_factory=MapConfig)
     obs: ObsConfig = field(default_factory=ObsConfig)
@@ -167,6 +201,7 @@ class Config:
     ppo: PPOConfig = field(default_factory=PPOConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     eval: EvalConfig = field(default_factory=EvalConfig)
+    rules: RulesConfig = field(default_factory=RulesConfig)
     seed: int = 0
     device: str = "cpu"
     threads: int = 1
@@ -239,5 +274,6 @@ _register_resolvers()
 def register_configs() -> None:
     cs = ConfigStore.instance()
     cs.store(name="base_config", node=Config)
-    for group, node in [("map", MapConfig), ("obs", ObsConfig), ("network", NetworkConfig), ("ppo", PPOConfig)]:
+    for group, node in [("map", MapConfig), ("obs", ObsConfig), ("network", NetworkConfig), ("ppo", PPOConfig),
+                        ("rules", RulesConfig)]:
         cs.store(group=group, name=f"base_{group}", node=node)

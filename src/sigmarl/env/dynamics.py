@@ -39,8 +39,10 @@ def bicycle_step(
     dt: float = DT,
     l_r: float = L_R,
     wheelbase: float = WHEELBASE,
+    wrap: bool = True,
 ) -> tuple[Tensor, Tensor, Tensor]:
-    """Advance the model by `dt` with speed and steering held.
+    """Advance the model by `dt` with speed and steering held (`wrap=False`: the heading is
+    left unwrapped, as the paper's code did).
 
     pos [..., 2], heading/speed/steering [...] (broadcast). Returns (new_pos [..., 2],
     new_heading [...] wrapped to (-pi, pi], velocity [..., 2]), the velocity being the
@@ -58,7 +60,7 @@ def bicycle_step(
     new_pos = pos + chord.unsqueeze(-1) * torch.stack(
         (torch.cos(mid_course), torch.sin(mid_course)), dim=-1
     )
-    new_heading = wrap_angle(heading + omega * dt)
+    new_heading = wrap_angle(heading + omega * dt) if wrap else heading + omega * dt
     end_course = new_heading + beta
     velocity = speed.unsqueeze(-1) * torch.stack(
         (torch.cos(end_course), torch.sin(end_course)), dim=-1

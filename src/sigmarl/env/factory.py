@@ -11,6 +11,7 @@ from torchrl.envs import EnvBase
 from torchrl.envs.libs.vmas import VmasEnv
 
 from sigmarl.env.observation import ObsFlags
+from sigmarl.env.paper_rules import PaperRules
 from sigmarl.env.scenario import ScenarioSettings, TrafficScenario
 from sigmarl.errors import SigmarlError
 from sigmarl.maps import RoadMap, load_map
@@ -35,6 +36,7 @@ class TrafficEnv(VmasEnv):
         # Cached: `num_envs` is forwarded to VMAS through torchrl's slow __getattr__ (~0.3 ms).
         self._n_envs = int(self.batch_size[0])
         self._steps = torch.zeros(self._n_envs, dtype=torch.long, device=self.device)
+        self._timeout_terminal = self._env.scenario.rules.timeout_terminal  # the paper's time-outs
         # the specs above were built from VMAS' per-agent infos; from now on _output reads the
         # scenario's batched infos, so VMAS need not slice and clone them agent by agent
         self._env.scenario.per_agent_infos = False
@@ -63,6 +65,8 @@ class TrafficEnv(VmasEnv):
         if with_reward:
             agents["reward"] = sc.rew.unsqueeze(-1)
         terminated = sc.terminated.unsqueeze(-1)
+        if self._timeout_terminal:
+            terminated = terminated | (self._steps >= self._max_steps).unsqueeze(-1)
         truncated = (self._steps >= self._max_steps).unsqueeze(-1) & ~terminated
         return TensorDict._new_unsafe(
             {
@@ -126,7 +130,8 @@ def make_env(
     """A VmasEnv over TrafficScenario; keyword arguments override the config's values
     (`map_cfg` its map, `road_map` an already loaded one).
 
-    A time-out is reported as `truncated` (bootstrapped by GAE), never as `terminated`.
+    A time-out is reported as `truncated` (bootstrapped by GAE), never as `terminated`
+    (unless `rules.timeout_terminal`, the paper's way).
     """
     env_cfg = cfg.env
     n_agents = int(n_agents if n_agents is not None else env_cfg.n_agents)
@@ -154,5 +159,6 @@ def make_env(
             spawn_end_fraction=float(env_cfg.spawn_end_fraction),
             spawn_margin_m=float(env_cfg.spawn_margin_m),
             seed=seed,  # VmasEnv keeps its own `seed` argument for itself
+            rules=PaperRules.from_config(cfg.rules),
         ),
     )

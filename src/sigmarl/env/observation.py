@@ -60,6 +60,10 @@ class ObsInputs:
     distances: torch.Tensor  # [E, A, A] center-to-center
     length: float = VEHICLE.length
     width: float = VEHICLE.width
+    # the paper's rules (`rules.*`) can change these; ours are the defaults
+    world: tuple[float, float] = WORLD_SIZE  # bird's-eye view scale
+    speed_scale: float = SPEED_SCALE
+    wrap_headings: bool = True  # relative headings wrapped to (-pi, pi]
 
 
 def _frame(points: torch.Tensor, x: ObsInputs, ego: bool) -> torch.Tensor:
@@ -67,7 +71,7 @@ def _frame(points: torch.Tensor, x: ObsInputs, ego: bool) -> torch.Tensor:
     if ego:
         out = to_local(points, x.pos, x.heading) / EGO_SCALE
     else:
-        out = points / points.new_tensor(WORLD_SIZE)
+        out = points / points.new_tensor(x.world)
     return out.flatten(-2)
 
 
@@ -76,8 +80,8 @@ def build_observation(x: ObsInputs, flags: ObsFlags) -> torch.Tensor:
     e = flags.ego_view
     parts: list[torch.Tensor] = []
     if not e:
-        parts += [x.pos / x.pos.new_tensor(WORLD_SIZE), (x.heading / HEADING_SCALE).unsqueeze(-1)]
-    parts.append(x.speed.unsqueeze(-1) / SPEED_SCALE if e else x.vel / SPEED_SCALE)
+        parts += [x.pos / x.pos.new_tensor(x.world), (x.heading / HEADING_SCALE).unsqueeze(-1)]
+    parts.append(x.speed.unsqueeze(-1) / x.speed_scale if e else x.vel / x.speed_scale)
     parts.append(_frame(x.ref_points, x, e))
     if flags.distance_to_center_line:
         parts.append(x.d_center.unsqueeze(-1) / DIST_SCALE)
@@ -110,15 +114,16 @@ def _others(x: ObsInputs, flags: ObsFlags) -> torch.Tensor:
         heading = take(x.heading)
         if e:
             pos = to_local(pos, x.pos, x.heading) / EGO_SCALE
-            heading = wrap_angle(heading - x.heading.unsqueeze(-1))
+            heading = heading - x.heading.unsqueeze(-1)
+            heading = wrap_angle(heading) if x.wrap_headings else heading
         else:
-            pos = pos / pos.new_tensor(WORLD_SIZE)
+            pos = pos / pos.new_tensor(x.world)
         size = pos.new_tensor([x.length / EGO_SCALE, x.width / EGO_SCALE]).expand(n_env, n_agents, k, 2)
         blocks += [pos, (heading / HEADING_SCALE).unsqueeze(-1), size]
     vel = take(x.vel)
     if e:
         vel = rotate(vel, -x.heading.unsqueeze(-1))
-    blocks.append(vel / SPEED_SCALE)
+    blocks.append(vel / x.speed_scale)
     if flags.distance_to_agents:
         blocks.append((x.distances.gather(2, nb) / DIST_SCALE).unsqueeze(-1))
     return torch.cat(blocks, dim=-1)

@@ -10,12 +10,13 @@ kinematic single-track model runs on our own state tensors.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import torch
 from vmas.simulator.core import Agent, Box, World
 from vmas.simulator.scenario import BaseScenario
 
+from sigmarl.env import paper_rules as paper
 from sigmarl.env.collision import (
     crossings_odd,
     nearest_on_segments,
@@ -25,7 +26,7 @@ from sigmarl.env.collision import (
 )
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import rect_corners
-from sigmarl.env.observation import ObsFlags, ObsInputs, build_observation
+from sigmarl.env.observation import WORLD_SIZE, ObsFlags, ObsInputs, build_observation
 from sigmarl.env.params import DT, VEHICLE
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
 from sigmarl.env.route_bank import CENTER, HALF_DIAGONAL, RouteBank
@@ -57,6 +58,7 @@ class ScenarioSettings:
     spawn_end_fraction: float
     spawn_margin_m: float
     seed: int  # the spawn and noise generators' seed
+    rules: paper.PaperRules = paper.PaperRules()  # the paper's rules switched on (none: ours)
 
 
 @dataclass
@@ -116,6 +118,7 @@ class TrafficScenario(BaseScenario):
         self.rng = torch.Generator(device=device)
         self.noise_rng = torch.Generator(device=device)
         self.seed(settings.seed)
+        self._init_rules(settings)
 
         world = World(batch_dim, device, dt=DT, substeps=1, drag=0.0)
         for i in range(self.n_agents):
@@ -126,7 +129,7 @@ class TrafficScenario(BaseScenario):
                     collide=False,
                     movable=False,  # our own dynamics move the vehicles
                     rotatable=False,
-                    u_range=[MAX_SPEED, MAX_STEER],
+                    u_range=[self.command_limit, MAX_STEER],
                     render_action=False,
                 )
             )
@@ -148,7 +151,18 @@ class TrafficScenario(BaseScenario):
         self._bound_table = self.bank.boundary_window_table(self.bank.reach)
         self._wide_table = self.bank.boundary_window_table(self.bank.wide_reach)
         self.spawn_table = self._spawn_table()
+        if self.rules.raw_center_line or (self.rules.own_boundary_index and not self.flags.distance_to_boundaries):
+            self.raw_geo = paper.RawGeometry(self.bank, self.road_map, self.ref_stride, self.n_ref, device)
         return world
+
+    def _init_rules(self, settings: ScenarioSettings) -> None:
+        """What the paper's rules (`paper_rules`) change, decided once here, not per step."""
+        rules = self.rules = settings.rules
+        self.command_limit = paper.COMMAND_LIMIT if rules.drag_dynamics else MAX_SPEED
+        self.obs_world = paper.test_world(self.road_map) if rules.test_world_size and not self.train else WORLD_SIZE
+        self.obs_speed_scale = paper.speed_scale(rules)
+        self.raw_geo: paper.RawGeometry | None = None
+        self.d_line = None  # raw center-line distance (raw_center_line), else geo.d_center
 
     def seed(self, seed: int) -> None:
         """Reseed the spawn and the noise generators (separate streams, so that spawns do not
@@ -161,6 +175,7 @@ class TrafficScenario(BaseScenario):
         z = lambda *s: torch.zeros(n_env, self.n_agents, *s, device=device)  # noqa: E731
         self.pos, self.vel, self.heading, self.speed = z(2), z(2), z(), z()
         self.steering, self.prev_steering = z(), z()
+        self.prev2_steering, self.yaw_rate = z(), z()  # lagged_steering, drag_dynamics
         self.action = z(2)
         self.route = torch.zeros(n_env, self.n_agents, dtype=torch.long, device=device)
         self.index = torch.zeros_like(self.route)
@@ -235,6 +250,9 @@ class TrafficScenario(BaseScenario):
         self.vel = torch.where(place.unsqueeze(-1), vel, self.vel)
         self.steering = torch.where(place, torch.zeros_like(self.steering), self.steering)
         self.prev_steering = torch.where(place, torch.zeros_like(self.steering), self.prev_steering)
+        if self.rules.lagged_steering or self.rules.drag_dynamics:
+            self.prev2_steering = self.prev2_steering.masked_fill(place, 0.0)
+            self.yaw_rate = self.yaw_rate.masked_fill(place, 0.0)
 
     # ---- per-step geometry ---------------------------------------------------------------
     def _progress_index(self) -> None:
@@ -300,6 +318,19 @@ class TrafficScenario(BaseScenario):
         """Everything observation, reward and info read, for all agents at once."""
         self.geo = self._ego_geometry(self.pos, self.heading, self.route, self.index)
         self._neighbour_geometry()
+        if self.raw_geo is not None:
+            self._raw_geometry()
+
+    def _raw_geometry(self) -> None:
+        """The paper's reference points, center-line distance (raw_center_line) and M4 boundary
+        points (own_boundary_index) in place of ours; geo.d_center stays ours, for the metrics."""
+        rows = self.bank.row(self.route, self.index)
+        changes = {}
+        if self.rules.raw_center_line:
+            self.d_line, changes["ref_points"] = self.raw_geo.center(self.pos, rows)
+        if self.rules.own_boundary_index and not self.flags.distance_to_boundaries:
+            changes["side_points"] = self.raw_geo.side_points(self.pos, self.route, rows)
+        self.geo = replace(self.geo, **changes)
 
     def _neighbour_geometry(self) -> None:
         self.distances = torch.cdist(self.pos, self.pos)
@@ -322,6 +353,8 @@ class TrafficScenario(BaseScenario):
         # Everyone is respawned at the first reset, before any geometry exists.
         self.geo = fresh if bool(place.all()) else fresh.where(place, self.geo)
         self._neighbour_geometry()
+        if self.raw_geo is not None:
+            self._raw_geometry()
 
     def _record_step_end(self) -> None:
         """Metrics of the state the step ended in, and its poses, kept before anyone respawns
@@ -343,18 +376,23 @@ class TrafficScenario(BaseScenario):
         return ~b.is_loop[self.route] & (self.index >= last) & beyond
 
     def _observe(self) -> None:
+        rules = self.rules
+        speed = self.speed.abs() if rules.unsigned_speed else self.speed
+        ego = self.flags.ego_view and rules.others_velocity_heading
+        vel = paper.heading_velocity(self.vel, self.heading) if ego else self.vel
         x = ObsInputs(
-            pos=self.pos, heading=self.heading, speed=self.speed, vel=self.vel,
-            ref_points=self.geo.ref_points, d_center=self.geo.d_center,
+            pos=self.pos, heading=self.heading, speed=speed, vel=vel,
+            ref_points=self.geo.ref_points, d_center=self.geo.d_center if self.d_line is None else self.d_line,
             d_left=self.geo.d_side[..., 0], d_right=self.geo.d_side[..., 1],
             left_points=self.geo.side_points[..., 0, :, :], right_points=self.geo.side_points[..., 1, :, :],
             corners=self.geo.corners, neighbours=self.neighbours, distances=self.distances,
-            length=LENGTH, width=WIDTH,
+            length=LENGTH, width=WIDTH, world=self.obs_world, speed_scale=self.obs_speed_scale,
+            wrap_headings=not rules.unwrapped_headings,
         )
         obs = build_observation(x, self.flags)
         if self.noise > 0:
             u = torch.rand(obs.shape, generator=self.noise_rng, device=obs.device)
-            obs = obs + (u - 0.5) * self.noise
+            obs = obs + u * self.noise if rules.one_sided_noise else obs + (u - 0.5) * self.noise
         self.obs = obs
         self.obs_ref_points = self.geo.ref_points  # what the next reward measures progress against
 
@@ -385,6 +423,7 @@ class TrafficScenario(BaseScenario):
         self.vel = self.speed.unsqueeze(-1) * torch.stack([self.heading.cos(), self.heading.sin()], -1)
         self.steering = (steering.to(self.pos) if steering is not None else torch.zeros_like(self.steering)).expand_as(self.steering).clone()
         self.prev_steering = self.steering.clone()
+        self.prev2_steering, self.yaw_rate = self.steering.clone(), torch.zeros_like(self.speed)
         # Closest center-line point over the whole route (no previous index to search around).
         b = self.bank
         d = (b.center[self.route] - self.pos.unsqueeze(-2)).norm(dim=-1)
@@ -404,38 +443,62 @@ class TrafficScenario(BaseScenario):
         if self.obs is None:
             self._refresh()
         prev_pos, prev_ref = self.pos, self.obs_ref_points
-        speed = self.action[..., 0].clamp(-MAX_SPEED, MAX_SPEED)
+        rules = self.rules
+        speed = self.action[..., 0].clamp(-self.command_limit, self.command_limit)
         steer = self.action[..., 1].clamp(-MAX_STEER, MAX_STEER)
+        self.prev2_steering = self.prev_steering
         self.prev_steering = self.steering
         self.steering = steer
-        self.speed = speed
-        self.pos, self.heading, self.vel = bicycle_step(self.pos, self.heading, speed, steer, DT)
+        if rules.drag_dynamics:
+            self.pos, self.heading, self.vel, self.speed, self.yaw_rate = paper.drag_step(
+                self.pos, self.heading, self.vel, self.yaw_rate, speed, steer, DT, wrap=not rules.unwrapped_headings)
+        else:
+            self.speed = speed
+            self.pos, self.heading, self.vel = bicycle_step(self.pos, self.heading, speed, steer, DT,
+                                                            wrap=not rules.unwrapped_headings)
         self._progress_index()
         self._geometry()
         self._collisions()
+        # What the reward and the episode's end read: our contacts, or the paper's strict
+        # crossings (the infos, hence the metrics, keep ours).
+        hit_agent, hit_lane = self.agent_collision, self.lane_collision
+        if rules.strict_crossings:
+            hit_agent = paper.strict_agent_crossings(self.geo.corners)
+            hit_lane = paper.strict_lane_crossings(self.geo.corners, self.bank.bounds[self.route])
+        steering, prev_steering = self.steering, self.prev_steering
+        if rules.lagged_steering:  # the paper compared the previous two actions
+            steering, prev_steering = self.prev_steering, self.prev2_steering
         self.terms = reward_terms(
             RewardInputs(
                 pos=self.pos, prev_pos=prev_pos, vel=self.vel, prev_ref_points=prev_ref,
                 d_boundary=self.geo.d_side.min(-1).values,
-                distances=self.distances, d_center=self.geo.d_center,
-                steering=self.steering, prev_steering=self.prev_steering,
-                agent_collision=self.agent_collision, lane_collision=self.lane_collision,
+                distances=self.distances, d_center=self.geo.d_center if self.d_line is None else self.d_line,
+                steering=steering, prev_steering=prev_steering,
+                agent_collision=hit_agent, lane_collision=hit_lane,
             )
         )
         self.rew = total_reward(self.terms)
         self._record_step_end()
         exited = self._past_exit()
-        collided = self.agent_collision | self.lane_collision
+        collided = hit_agent | hit_lane
+        if rules.env_lane_flag:  # the paper's info flag: any lane collision in the environment
+            self.lane_collision = self.lane_collision.any(-1, keepdim=True).expand_as(self.lane_collision)
         if self.train:
             self.terminated = collided.any(-1)
             self.respawned = exited & ~self.terminated.unsqueeze(-1)
         else:
             self.terminated = torch.zeros_like(self.terminated)
             self.respawned = exited | collided
+        stale = None
         if self.respawned.any():
+            if rules.stale_respawn_obs and not self.train:  # the paper's: the pre-respawn observation
+                self._observe()
+                stale = self.obs
             self._respawn(self.respawned)
             self._spawn_geometry(self.respawned)
         self._observe()
+        if stale is not None:
+            self.obs = torch.where(self.respawned.unsqueeze(-1), stale, self.obs)
 
     def observation(self, agent: Agent) -> torch.Tensor:
         if self.obs is None:

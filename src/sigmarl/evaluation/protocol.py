@@ -20,6 +20,7 @@ from sigmarl.ablation import (
     obs_strategies,
 )
 from sigmarl.config import Config, EvalConfig, as_dict
+from sigmarl.env.paper_rules import rules_label
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
@@ -75,10 +76,20 @@ def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] |
     rows.insert(0, "model", train_cfg.model)  # the run's label (the study's variant)
     rows.insert(1, "obs", obs_strategies(train_cfg.obs))
     rows.insert(2, "seed", int(train_cfg.seed))
+    # the rules the policy was trained and evaluated under (the metrics are always ours)
+    rows.insert(3, "rules", rules_label(train_cfg.rules))
     # which study and training config the rows belong to (rows from before have neither)
     rows["study"] = train_cfg.study.name
     rows["fingerprint"] = fingerprint(train_cfg)
     return rows, state
+
+
+def rows_rules(rows: pd.DataFrame) -> pd.Series:
+    """The rules each evaluation row's policy ran under (`ours`, `paper` or the switches on):
+    rows written before the `rules` column existed were all measured under ours."""
+    if "rules" not in rows.columns:
+        return pd.Series("ours", index=rows.index, name="rules")
+    return rows["rules"].fillna("ours")
 
 
 def rows_file_for(checkpoint: Path, cfg: Config) -> Path:
@@ -122,6 +133,8 @@ def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) ->
     write_atomic(rows_file, rows.to_csv(index=False))
     # `rules`: which environment rules measured them (`report --from` leaves out older ones)
     meta = {**identity, "rules": RULES_REVISION, "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
+    # `rules_label`: the policy's rules switches (`ours`, `paper` or those on; old rows: ours)
+    meta["rules_label"] = str(rows["rules"].iloc[0]) if "rules" in rows.columns and len(rows) else "ours"
     write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
 
 

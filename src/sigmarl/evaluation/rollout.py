@@ -18,6 +18,7 @@ from tqdm.auto import tqdm
 from sigmarl.compose import scenario_map_config
 from sigmarl.config import Config
 from sigmarl.env import make_env
+from sigmarl.env.paper_rules import for_evaluation
 from sigmarl.errors import SigmarlError
 from sigmarl.scenarios import scenario as scenario_of
 
@@ -56,8 +57,10 @@ def evaluate_policy(
 
     `cfg` supplies the observation design (it must be the one the policy was trained
     with); the scenario supplies map and agent count. The same `seed` gives every
-    model the same initial states.
+    model the same initial states. The policy acts under the dynamics and observation of its
+    `cfg.rules`; what is measured is always ours (`paper_rules.for_evaluation`).
     """
+    cfg = for_evaluation(cfg)
     map_cfg = scenario_map_config(scenario)
     n_agents = n_agents or scenario_of(scenario).n_agents
     env = make_env(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", max_steps=steps,

@@ -40,7 +40,7 @@ from sigmarl.training.ppo_loss import LOSSES
 
 # what a resume must share with the interrupted run (anything else, e.g. threads, device,
 # evaluation settings, may change); ppo.stop_after is the interruption itself
-RESUME_MUST_MATCH = ("map.", "obs.", "env.", "network.", "ppo.", "seed")
+RESUME_MUST_MATCH = ("map.", "obs.", "env.", "network.", "ppo.", "seed", "rules.")
 
 
 @dataclass
