@@ -142,6 +142,7 @@ class TrafficScenario(BaseScenario):
         self._eye_big = torch.eye(self.n_agents, device=device) * 1e9
         self._alloc(batch_dim, device)
         self.per_agent_infos = True
+        self.compute_reward = True  # the evaluation reads no reward and turns it off
         self._line_table = self.bank.window_table("lines", self._line_offsets)
         self._side_table = self.bank.window_table("sides", self._side_offsets)
         self._segment_table = segment_table(self._line_table)
@@ -413,16 +414,17 @@ class TrafficScenario(BaseScenario):
         self._progress_index()
         self._geometry()
         self._collisions()
-        self.terms = reward_terms(
-            RewardInputs(
-                pos=self.pos, prev_pos=prev_pos, vel=self.vel, prev_ref_points=prev_ref,
-                d_boundary=self.geo.d_side.min(-1).values,
-                distances=self.distances, d_center=self.geo.d_center,
-                steering=self.steering, prev_steering=self.prev_steering,
-                agent_collision=self.agent_collision, lane_collision=self.lane_collision,
+        if self.compute_reward:
+            self.terms = reward_terms(
+                RewardInputs(
+                    pos=self.pos, prev_pos=prev_pos, vel=self.vel, prev_ref_points=prev_ref,
+                    d_boundary=self.geo.d_side.min(-1).values,
+                    distances=self.distances, d_center=self.geo.d_center,
+                    steering=self.steering, prev_steering=self.prev_steering,
+                    agent_collision=self.agent_collision, lane_collision=self.lane_collision,
+                )
             )
-        )
-        self.rew = total_reward(self.terms)
+            self.rew = total_reward(self.terms)
         self._record_step_end()
         exited = self._past_exit()
         collided = self.agent_collision | self.lane_collision

@@ -84,6 +84,7 @@ def evaluate_policy(
     n_agents = n_agents or SCENARIOS[scenario][1]
     sc = make_scenario(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", map_cfg=map_cfg,
                        seed=seed, device=device)
+    sc.compute_reward = False
     act = as_tensor_policy(policy)
     sc.reset_world_at(None)  # the rollout's own reset, as env.reset() does
     obs = sc.current_observation()
