@@ -112,7 +112,7 @@ def main() -> None:
             for name, src in trees.items():
                 for key, values in run_tree(src, args, cases).items():
                     old = best[name].get(key, [float("inf")] * 4)
-                    best[name][key] = [min(a, b) for a, b in zip(old, values[:4])] + [values[4]]
+                    best[name][key] = [min(a, b) for a, b in zip(old[:4], values[:4], strict=True)] + [values[4]]
             print(f"repeat {r + 1}/{args.repeats} done", file=sys.stderr)
 
     scale = 1200 / args.steps
