@@ -13,7 +13,9 @@ Projections from the best times:
 - the generalisation matrix (18 model-seeds x 14 scenarios, two processes of one thread):
   18 x (12 maps x the paper test maps' mean + CPM-30 + CPM-45) / 2. The twelve maps carry
   6-10 agents, as the paper's test maps (6-8) do; their own times replace this estimate
-  once they are scenarios.
+  once they are scenarios;
+- the floor: the CPU time of the policy's forward passes alone (the rows stay bit for bit
+  only with the same network on the same batch shapes, so no evaluation goes below it).
 
 Run: python benchmarks/bench_evaluation.py [--baseline-rev REV | --baseline-src PATH]
      [--checkpoint FILE] [--steps N] [--repeats R] [--no-dense]
@@ -29,6 +31,7 @@ import subprocess
 import sys
 import tarfile
 import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -93,6 +96,32 @@ def run_tree(src: Path, args, cases) -> dict[str, list[float]]:
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
+def policy_floor(checkpoint: Path, cases, steps: int, sims: int, repeats: int) -> dict[str, float]:
+    """CPU seconds of the actor's forward passes alone over a 1200-step evaluation, per
+    scenario: what any evaluation that keeps the rows bit for bit (same network, same batch
+    shapes) spends at least."""
+    import torch
+
+    from sigmarl.training.loop import load_policy
+    from sigmarl.training.networks import PolicyHead
+
+    torch.set_num_threads(1)
+    out = {}
+    for scenario, n_agents in cases:
+        actor, state = load_policy(checkpoint, n_agents=n_agents)
+        act = PolicyHead(actor).deterministic_action
+        obs = torch.randn(sims, n_agents, state["dims"]["obs_dim"])
+        best = float("inf")
+        with torch.inference_mode():
+            for _ in range(repeats):
+                c = time.process_time()
+                for _ in range(steps):
+                    act(obs)
+                best = min(best, time.process_time() - c)
+        out[f"{scenario}-{n_agents}"] = best * 1200 / steps
+    return out
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--baseline-rev", default=BASELINE_REV, help="git revision to compare with")
@@ -141,6 +170,10 @@ def main() -> None:
         per_model = 12 * small + full(times["CPM-30"], k) + full(times["CPM-45"], k)
         return evaluate, 18 * per_model / 2
 
+    floor = policy_floor(args.checkpoint, cases, min(args.steps, 300), args.sims, args.repeats)
+    print("[cpu] the policy's forward passes alone, 1200 steps: "
+          + ", ".join(f"{key} {sec:.1f} s" for key, sec in floor.items())
+          + f"; the four paper scenarios {sum(floor[f'{s}-{n}'] for s, n in PAPER):.1f} s")
     for k, what in ((0, "wall"), (2, "cpu")):
         (be, bm), (ce, cm) = projections(best["baseline"], k), projections(best["current"], k)
         print(f"[{what}] sigmarl evaluate, 4 paper scenarios: baseline {be:.1f} s, current {ce:.1f} s, "
