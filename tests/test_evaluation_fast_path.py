@@ -55,8 +55,7 @@ def test_direct_steps_reproduce_the_torchrl_env(cfg, scenario, n_agents):
     g = torch.Generator().manual_seed(0)
     respawns = 0
     for _ in range(60):
-        # beyond the action box at times: VMAS clamps them, and so must step_scenario
-        action = (torch.rand(4, n_agents, 2, generator=g) * 2 - 1) * torch.tensor([1.0, 0.8])
+        action = (torch.rand(4, n_agents, 2, generator=g) * 2 - 1) * torch.tensor([0.8, 0.6108])
         td = env.step(td.set(ACTION, action))
         obs = step_scenario(sc, action)
         info = td.get(("next", "agents", "info"))
@@ -70,12 +69,16 @@ def test_direct_steps_reproduce_the_torchrl_env(cfg, scenario, n_agents):
     assert respawns > 0
 
 
-def test_nan_actions_are_a_clear_error(cfg):
+@pytest.mark.parametrize("bad", [float("nan"), 0.9])
+def test_actions_that_vmas_rejects_are_a_clear_error(cfg, bad):
+    """VMAS asserts actions are finite and inside the box (0.8 m/s, 35 degrees)."""
     from sigmarl.errors import SigmarlError
 
     sc = make_scenario(cfg, num_envs=2, n_agents=6, map_cfg=scenario_map_config("Intersection"), seed=1)
-    with pytest.raises(SigmarlError, match="NaN"):
-        step_scenario(sc, torch.full((2, 6, 2), float("nan")))
+    action = torch.zeros(2, 6, 2)
+    action[1, 3, 0] = bad
+    with pytest.raises(SigmarlError, match="outside the action box"):
+        step_scenario(sc, action)
 
 
 @pytest.mark.slow

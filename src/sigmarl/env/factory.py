@@ -194,11 +194,13 @@ def step_scenario(scenario: TrafficScenario, action: torch.Tensor) -> torch.Tens
     """One step of every environment with actions [E, A, 2], as VMAS' `step` carries it
     out for this scenario (its world holds no physics of ours); returns the new
     observation [E, A, D]."""
-    if bool(action.isnan().any()):
-        raise SigmarlError("the policy gave NaN actions")
-    # VMAS clamps each agent's action to its u_range and scales it by u_multiplier (float32)
+    # VMAS rejects NaN and out-of-range actions (it does not clamp them), then scales them by
+    # u_multiplier in float32
     agent = scenario.world.agents[0]  # every agent has the same action range
-    u = action.clamp(-agent.action.u_range_tensor, agent.action.u_range_tensor).to(torch.float32)
-    scenario.action = u * agent.action.u_multiplier_tensor
+    bound = agent.action.u_range_tensor
+    if bool(action.isnan().any()) or bool((action.abs() > bound).any()):
+        raise SigmarlError(f"the policy gave actions outside the action box +-{[round(b, 4) for b in bound.tolist()]} "
+                           "(or NaN)")
+    scenario.action = action.to(torch.float32) * agent.action.u_multiplier_tensor
     scenario.post_step()
     return scenario.current_observation()
