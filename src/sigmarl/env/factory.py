@@ -148,17 +148,65 @@ def make_env(
         continuous_actions=True,
         max_steps=max_steps,
         seed=seed,
-        settings=ScenarioSettings(
-            road_map=road_map,
-            flags=flags,
-            n_agents=n_agents,
-            mode=mode,
-            noise=float(cfg.obs.noise),
-            ref_point_stride=int(cfg.obs.ref_point_stride),
-            spawn_start_m=float(env_cfg.spawn_start_m),
-            spawn_end_fraction=float(env_cfg.spawn_end_fraction),
-            spawn_margin_m=float(env_cfg.spawn_margin_m),
-            seed=seed,  # VmasEnv keeps its own `seed` argument for itself
-            rules=PaperRules.from_config(cfg.rules),
-        ),
+        settings=_settings(cfg, road_map, flags, n_agents, mode, seed),
     )
+
+
+def _settings(cfg: Config, road_map: RoadMap, flags: ObsFlags, n_agents: int, mode: str, seed: int) -> ScenarioSettings:
+    env_cfg = cfg.env
+    return ScenarioSettings(
+        road_map=road_map,
+        flags=flags,
+        n_agents=n_agents,
+        mode=mode,
+        noise=float(cfg.obs.noise),
+        ref_point_stride=int(cfg.obs.ref_point_stride),
+        spawn_start_m=float(env_cfg.spawn_start_m),
+        spawn_end_fraction=float(env_cfg.spawn_end_fraction),
+        spawn_margin_m=float(env_cfg.spawn_margin_m),
+        seed=seed,  # VmasEnv keeps its own `seed` argument for itself
+        rules=PaperRules.from_config(cfg.rules),
+    )
+
+
+def make_scenario(
+    cfg: Config,
+    *,
+    num_envs: int,
+    n_agents: int,
+    mode: str = "test",
+    map_cfg: MapConfig | None = None,
+    road_map: RoadMap | None = None,
+    seed: int | None = None,
+    device: str | None = None,
+) -> TrafficScenario:
+    """The TrafficScenario `make_env` would wrap, without VMAS' environment and torchrl's
+    wrapper around it: for loops that step it themselves (`step_scenario`), as the evaluation
+    does. Built and reset as VMAS' constructor does, so the same seed gives the same
+    spawns and noise as `make_env(...).reset()`."""
+    seed = int(seed if seed is not None else cfg.seed)
+    flags = ObsFlags.from_config(cfg.obs)
+    validate(n_agents, mode, float(cfg.obs.noise), num_envs, 1, flags)
+    road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
+    scenario = TrafficScenario()
+    scenario.env_make_world(num_envs, torch.device(device or cfg.device),
+                            settings=_settings(cfg, road_map, flags, n_agents, mode, seed))
+    scenario.reset_world_at(None)  # VMAS resets (and observes) once when it builds an environment
+    scenario.current_observation()
+    return scenario
+
+
+def step_scenario(scenario: TrafficScenario, action: torch.Tensor) -> torch.Tensor:
+    """One step of every environment with actions [E, A, 2], as VMAS' `step` carries it
+    out for this scenario (its world holds no physics of ours); returns the new
+    observation [E, A, D]."""
+    # VMAS rejects NaN and out-of-range actions (it does not clamp them), then scales them by
+    # u_multiplier in float32
+    agent = scenario.world.agents[0]  # every agent has the same action range
+    bound = agent.action.u_range_tensor
+    if bool(action.isnan().any()) or bool((action.abs() > bound).any()):
+        raise SigmarlError(f"the policy gave actions outside the action box +-{[round(b, 4) for b in bound.tolist()]} "
+                           "(or NaN)")
+    scenario.action = action.to(torch.float32) * agent.action.u_multiplier_tensor
+    scenario.post_step()
+    return scenario.current_observation()

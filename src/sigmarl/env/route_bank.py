@@ -18,6 +18,7 @@ so a fixed window around it always covers the agent.
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from sigmarl.env.collision import segment_table
@@ -190,52 +191,62 @@ def _follow(dist: torch.Tensor, n_line: torch.Tensor, n_center: torch.Tensor, is
 
     dist [R, C, M, N] from center points to line elements. Walking the center line from its
     start, each point takes the nearest element among the previous point's and the `ahead`
-    elements after it (a center step of 0.08 m never passes more). Both start at the route's
-    start, so the walk stays on the same stretch of road even where a route crosses itself
-    or comes back near itself. Returns [R, C, M] (padding rows repeat the last real one).
+    elements after it (a center step of 0.08 m never passes more; the first of equally near
+    ones). Both start at the route's start, so the walk stays on the same stretch of road even
+    where a route crosses itself or comes back near itself. Returns [R, C, M] (padding rows
+    repeat the last real one). The walk is sequential along the center line only: every
+    route and line walks at once.
     """
     r_n, c_n, m_n, _ = dist.shape
-    out = torch.zeros(r_n, c_n, m_n, dtype=torch.long)
     d = dist.numpy()
-    for r in range(r_n):
-        loop = bool(is_loop[r])
-        for c in range(c_n):
-            n = int(n_line[r, c])
-            j = 0
-            for i in range(int(n_center[r])):
-                cand = [_step(j, k, n, loop) for k in range(ahead + 1)]
-                j = min(cand, key=lambda q: d[r, c, i, q])
-                out[r, c, i] = j
-            out[r, c, int(n_center[r]):] = j
-    return out
+    n = n_line.numpy()[..., None]  # [R, C, 1]
+    loop = np.broadcast_to(is_loop.numpy()[:, None, None], (r_n, c_n, 1))
+    live = np.arange(m_n)[None, :] < n_center.numpy()[:, None]  # [R, M]
+    rr, cc = np.ogrid[:r_n, :c_n]
+    j = np.zeros((r_n, c_n), dtype=np.int64)
+    out = np.zeros((r_n, c_n, m_n), dtype=np.int64)
+    steps = np.arange(ahead + 1)
+    for i in range(m_n):
+        cand = j[..., None] + steps  # [R, C, ahead + 1]
+        cand = np.where(loop, cand % n, np.minimum(cand, n - 1))
+        best = cand[rr, cc, d[rr[..., None], cc[..., None], i, cand].argmin(-1)]
+        j = np.where(live[:, i][:, None], best, j)
+        out[..., i] = j
+    return torch.from_numpy(out)
 
 
 def _local_runs(dist: torch.Tensor, near: torch.Tensor, n_seg: torch.Tensor, is_loop: torch.Tensor,
                 reach: float) -> torch.Tensor:
     """Per route, center point and side, the run of consecutive segments around `near` out to
     the first one farther than `reach` on either side: [R, M, C, S_w] indices, shorter runs
-    padded with their last member."""
-    r_n, c_n, m_n, _ = dist.shape
-    runs: dict[tuple[int, int, int], list[int]] = {}
+    padded with their last member.
+
+    A run holds each segment once: on a loop it takes at most all n segments (the backward
+    side first), otherwise it stops at the line's ends.
+    """
+    r_n, c_n, m_n, s_n = dist.shape
     d = dist.numpy()
-    for r in range(r_n):
-        loop = bool(is_loop[r])
-        for c in range(c_n):
-            n = int(n_seg[r, c])
-            for i in range(m_n):
-                j0 = int(near[r, c, i])
-                run = [j0]
-                for direction in (-1, 1):
-                    j = j0
-                    while len(run) < n:
-                        nxt = _step(j, direction, n, loop)
-                        if nxt == j or nxt in run or d[r, c, i, nxt] > reach:
-                            break
-                        run.insert(0, nxt) if direction < 0 else run.append(nxt)
-                        j = nxt
-                runs[r, c, i] = run
-    width = max(len(run) for run in runs.values())
-    out = torch.zeros(r_n, m_n, c_n, width, dtype=torch.long)
-    for (r, c, i), run in runs.items():
-        out[r, i, c] = torch.tensor(run + [run[-1]] * (width - len(run)))
-    return out
+    j0 = near.numpy()[..., None]  # [R, C, M, 1]
+    n = n_seg.numpy()[:, :, None, None]
+    loop = is_loop.numpy()[:, None, None, None]
+    q = np.arange(1, max(s_n, 2))  # steps away from j0
+
+    def extent(sign: int, cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How many segments the run takes on one side, and their indices."""
+        idx = j0 + sign * q
+        inside = loop | ((idx >= 0) & (idx < n))
+        idx = np.where(loop, idx % n, np.clip(idx, 0, n - 1))
+        near_enough = np.take_along_axis(d, idx, axis=-1) <= reach
+        ok = inside & near_enough & (q <= cap)
+        return np.cumprod(ok, axis=-1).sum(-1, keepdims=True), idx
+
+    left, left_idx = extent(-1, np.where(loop, n - 1, j0))
+    right, right_idx = extent(1, np.where(loop, n - 1 - left, n - 1 - j0))
+    width = int((left + right).max()) + 1
+    # run position p = 0 .. width-1 holds j0 - left + p, clipped to the run's last member
+    p = np.arange(width)
+    offset = np.minimum(p - left, right)  # [R, C, M, W]: -left .. right, then right repeated
+    back = np.take_along_axis(left_idx, np.clip(-offset - 1, 0, None), axis=-1)
+    ahead = np.take_along_axis(right_idx, np.clip(offset - 1, 0, None), axis=-1)
+    runs = np.where(offset < 0, back, np.where(offset > 0, ahead, j0))
+    return torch.from_numpy(np.ascontiguousarray(runs.transpose(0, 2, 1, 3)))

@@ -145,6 +145,7 @@ class TrafficScenario(BaseScenario):
         self._eye_big = torch.eye(self.n_agents, device=device) * 1e9
         self._alloc(batch_dim, device)
         self.per_agent_infos = True
+        self.compute_reward = True  # the evaluation reads no reward and turns it off
         self._line_table = self.bank.window_table("lines", self._line_offsets)
         self._side_table = self.bank.window_table("sides", self._side_offsets)
         self._segment_table = segment_table(self._line_table)
@@ -465,19 +466,20 @@ class TrafficScenario(BaseScenario):
         if rules.strict_crossings:
             hit_agent = paper.strict_agent_crossings(self.geo.corners)
             hit_lane = paper.strict_lane_crossings(self.geo.corners, self.bank.bounds[self.route])
-        steering, prev_steering = self.steering, self.prev_steering
-        if rules.lagged_steering:  # the paper compared the previous two actions
-            steering, prev_steering = self.prev_steering, self.prev2_steering
-        self.terms = reward_terms(
-            RewardInputs(
-                pos=self.pos, prev_pos=prev_pos, vel=self.vel, prev_ref_points=prev_ref,
-                d_boundary=self.geo.d_side.min(-1).values,
-                distances=self.distances, d_center=self.geo.d_center if self.d_line is None else self.d_line,
-                steering=steering, prev_steering=prev_steering,
-                agent_collision=hit_agent, lane_collision=hit_lane,
+        if self.compute_reward:  # the evaluation never reads it
+            steering, prev_steering = self.steering, self.prev_steering
+            if rules.lagged_steering:  # the paper compared the previous two actions
+                steering, prev_steering = self.prev_steering, self.prev2_steering
+            self.terms = reward_terms(
+                RewardInputs(
+                    pos=self.pos, prev_pos=prev_pos, vel=self.vel, prev_ref_points=prev_ref,
+                    d_boundary=self.geo.d_side.min(-1).values,
+                    distances=self.distances, d_center=self.geo.d_center if self.d_line is None else self.d_line,
+                    steering=steering, prev_steering=prev_steering,
+                    agent_collision=hit_agent, lane_collision=hit_lane,
+                )
             )
-        )
-        self.rew = total_reward(self.terms)
+            self.rew = total_reward(self.terms)
         self._record_step_end()
         exited = self._past_exit()
         collided = hit_agent | hit_lane

@@ -10,38 +10,56 @@ from collections.abc import Callable
 
 import pandas as pd
 import torch
-from tensordict import TensorDictBase
-from tensordict.nn import TensorDictModuleBase
+from tensordict import TensorDict
+from tensordict.nn import NormalParamExtractor, TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
+from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
 from tqdm.auto import tqdm
 
 from sigmarl.compose import scenario_map_config
 from sigmarl.config import Config
-from sigmarl.env import make_env
+from sigmarl.env.factory import make_scenario, step_scenario
 from sigmarl.env.paper_rules import for_evaluation
 from sigmarl.errors import SigmarlError
 from sigmarl.scenarios import scenario as scenario_of
+from sigmarl.training.networks import PolicyHead
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
-INFO = ("next", "agents", "info")
 
-Policy = Callable[[TensorDictBase], TensorDictBase]
+Policy = Callable[[torch.Tensor], torch.Tensor]
 
 
-def as_td_policy(policy) -> Policy:
-    """Accept a TensorDict module, or any module/function mapping obs [E, A, D] -> action [E, A, 2]."""
+def as_tensor_policy(policy) -> Policy:
+    """A function obs [E, A, D] -> action [E, A, 2] acting as `policy` does in evaluation
+    (deterministically): `make_actor`'s actor becomes plain tensor maths, any other TensorDict
+    module is called on a TensorDict, and modules or functions on tensors are used as given."""
+    if isinstance(policy, ProbabilisticActor) and _is_tanh_normal_actor(policy):
+        return PolicyHead(policy).deterministic_action
     if isinstance(policy, TensorDictModuleBase):
-        return policy
+        def run(obs: torch.Tensor) -> torch.Tensor:
+            td = TensorDict({OBS: obs}, batch_size=obs.shape[:1])
+            with set_exploration_type(ExplorationType.DETERMINISTIC):
+                return policy(td).get(ACTION)
 
-    def run(td: TensorDictBase) -> TensorDictBase:
-        td.set(ACTION, policy(td.get(OBS)))
-        return td
-
-    return run
+        return run
+    return policy
 
 
-@torch.no_grad()
+def _is_tanh_normal_actor(actor: ProbabilisticActor) -> bool:
+    """Built by `make_actor`: Sequential(parameter-shared MultiAgentMLP, NormalParamExtractor)
+    feeding a TanhNormal, whose deterministic action PolicyHead computes."""
+    try:
+        head = actor.module[0].module
+        dist = actor.module[1].distribution_class
+    except (AttributeError, IndexError, TypeError):
+        return False
+    return (dist is TanhNormal and isinstance(head, torch.nn.Sequential) and len(head) == 2
+            and isinstance(head[0], MultiAgentMLP) and head[0].share_params and not head[0].centralized
+            and isinstance(head[1], NormalParamExtractor))
+
+
+@torch.inference_mode()
 def evaluate_policy(
     policy,
     cfg: Config,
@@ -59,42 +77,43 @@ def evaluate_policy(
     with); the scenario supplies map and agent count. The same `seed` gives every
     model the same initial states. The policy acts under the dynamics and observation of its
     `cfg.rules`; what is measured is always ours (`paper_rules.for_evaluation`).
+
+    The scenario is stepped directly, as VMAS would step it (`step_scenario`): a test
+    rollout never resets an environment and reads only the scenario's own tensors, so the
+    per-step TensorDicts of torchrl and VMAS' per-agent calls would only add time.
     """
     cfg = for_evaluation(cfg)
     map_cfg = scenario_map_config(scenario)
     n_agents = n_agents or scenario_of(scenario).n_agents
-    env = make_env(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", max_steps=steps,
-                   map_cfg=map_cfg, seed=seed, device=device)
-    act = as_td_policy(policy)
-    obs_dim = env.full_observation_spec[OBS].shape[-1]
-    aa_steps = torch.zeros(n_sims, device=env.device)
+    sc = make_scenario(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", map_cfg=map_cfg,
+                       seed=seed, device=device)
+    sc.compute_reward = False
+    act = as_tensor_policy(policy)
+    sc.reset_world_at(None)  # the rollout's own reset, as env.reset() does
+    obs = sc.current_observation()
+    aa_steps = torch.zeros(n_sims, device=obs.device)
     al_steps = torch.zeros_like(aa_steps)
     aa_agent, al_agent = torch.zeros_like(aa_steps), torch.zeros_like(aa_steps)
     dist_sum, speed_sum = torch.zeros_like(aa_steps), torch.zeros_like(aa_steps)
-    td = env.reset()
-    with set_exploration_type(ExplorationType.DETERMINISTIC):
-        for _ in tqdm(range(steps), desc=f"evaluate {scenario}", disable=not progress, leave=False):
-            try:
-                td = act(td)
-            except RuntimeError as e:  # typically a shape mismatch in the first layer
-                raise SigmarlError(
-                    f"the policy cannot act on {scenario}'s observations (size {obs_dim}, "
-                    f"observation preset {cfg.obs.preset!r}): {e}"
-                ) from e
-            if td.get(ACTION).shape[-1] != 2:
-                raise SigmarlError(f"policy gave actions of shape {tuple(td.get(ACTION).shape)}, expected [..., 2]")
-            td = env.step(td)
-            info = td.get(INFO)
-            aa = info["agent_collision"].squeeze(-1) > 0  # [E, A]
-            al = info["lane_collision"].squeeze(-1) > 0
-            aa_steps += aa.any(-1)
-            al_steps += al.any(-1)
-            aa_agent += aa.sum(-1)
-            al_agent += al.sum(-1)
-            dist_sum += info["distance_to_center_line"].squeeze(-1).sum(-1)
-            speed_sum += info["speed"].squeeze(-1).sum(-1)
-            td = env.step_mdp(td)
-    env.close()
+    for _ in tqdm(range(steps), desc=f"evaluate {scenario}", disable=not progress, leave=False):
+        try:
+            action = act(obs)
+        except RuntimeError as e:  # typically a shape mismatch in the first layer
+            raise SigmarlError(
+                f"the policy cannot act on {scenario}'s observations (size {obs.shape[-1]}, "
+                f"observation preset {cfg.obs.preset!r}): {e}"
+            ) from e
+        if tuple(action.shape) != (n_sims, n_agents, 2):
+            raise SigmarlError(f"policy gave actions of shape {tuple(action.shape)}, expected [{n_sims}, {n_agents}, 2]")
+        obs = step_scenario(sc, action)
+        # what the step's infos report: the state it ended in, before anyone respawned
+        aa, al = sc.agent_collision, sc.lane_collision  # [E, A]
+        aa_steps += aa.any(-1)
+        al_steps += al.any(-1)
+        aa_agent += aa.sum(-1)
+        al_agent += al.sum(-1)
+        dist_sum += sc.step_d_center.sum(-1)
+        speed_sum += sc.step_speed.sum(-1)
     agent_steps = steps * n_agents
     rows = pd.DataFrame({
         "scenario": scenario,

@@ -154,6 +154,13 @@ class PolicyHead:
     def loc_scale(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         return self.scale_map(self.net(obs))
 
+    def deterministic_action(self, obs: torch.Tensor) -> torch.Tensor:
+        """The actor's action under ExplorationType.DETERMINISTIC: the TanhNormal's
+        deterministic sample, the box's affine map of the clamped tanh of the mean, in the
+        same order of operations (so the same bits); the scale is not needed."""
+        loc = self.net(obs).chunk(2, -1)[0]
+        return self.mid + self.half * loc.tanh().clamp(-self.tanh_limit, self.tanh_limit)
+
 
 class TanhNormalSampler(nn.Module):
     """The actor's exploration policy for collecting rollouts, as plain tensor maths.
