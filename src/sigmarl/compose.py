@@ -18,10 +18,12 @@ from sigmarl.ablation import SCENARIOS
 from sigmarl.config import Config, MapConfig, as_config, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.paths import conf_dir
+from sigmarl.validate import check
 
 
 def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> Config:
-    """The resolved config; a bad override raises SigmarlError with Hydra's message (which names the key)."""
+    """The resolved config, checked (`sigmarl.validate.check`); a bad override or value raises
+    SigmarlError with a message that names the key."""
     register_configs()
     # After a Hydra app (the sweep) has run in this process its global state lingers.
     GlobalHydra.instance().clear()
@@ -31,12 +33,14 @@ def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -
         OmegaConf.resolve(cfg)
     except (HydraException, OmegaConfBaseException) as e:
         raise SigmarlError(f"bad config override: {e}") from e
+    except ValueError as e:  # e.g. an integer too long for Python to parse (over 4300 digits)
+        raise SigmarlError(f"bad config override: {str(e).splitlines()[0]}") from e
     # `+key=value` adds keys the schema does not know (Hydra's own error message even suggests
     # it): a misspelt flag would be silently ignored.
     unknown = _unknown_keys(cfg, OmegaConf.structured(Config))
     if unknown:
         raise SigmarlError(f"unknown config key(s): {', '.join(unknown)}")
-    return as_config(cfg)
+    return check(as_config(cfg))
 
 
 def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list[str]:

@@ -25,7 +25,7 @@ from hydra.core.override_parser.types import Override
 from hydra.errors import HydraException
 from omegaconf import DictConfig
 
-from sigmarl.ablation import MODELS, check_eval
+from sigmarl.ablation import MODELS
 from sigmarl.config import Config, as_config
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.resources import enter_sweep_folder, job_threads, sweep_folder_override
@@ -98,6 +98,8 @@ def _parse(items: Sequence[str]) -> list[Override]:
         return OverridesParser.create().parse_overrides(list(items))
     except HydraException as e:
         raise SigmarlError(f"bad override: {e}") from e
+    except ValueError as e:  # e.g. an integer too long for Python to parse (over 4300 digits)
+        raise SigmarlError(f"bad override: {str(e).splitlines()[0]}") from e
 
 
 def _values(o: Override) -> list[str]:
@@ -209,8 +211,7 @@ def _prepare_store(overrides: Sequence[str]) -> None:
     # before anything trains, and two jobs never share a run folder.
     owner: dict[str, list[str]] = {}
     for job in _jobs(overrides):
-        cfg = compose_config([*fixed, *job])
-        check_eval(cfg.eval)
+        cfg = compose_config([*fixed, *job])  # checked there (sigmarl.validate)
         if cfg.run_dir in owner:
             raise SigmarlError(
                 f"jobs {' '.join(owner[cfg.run_dir])} and {' '.join(job)} would share the run folder "

@@ -35,9 +35,7 @@ from sigmarl.tracking import connect, experiment_id, records
 def checkpoint_name(which: str) -> str:
     from sigmarl.training import checkpoint as ckpt
 
-    if which not in ("best", "final"):
-        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {which!r}")
-    return ckpt.BEST_FILE if which == "best" else ckpt.FINAL_FILE
+    return {"best": ckpt.BEST_FILE, "final": ckpt.FINAL_FILE}[which]  # checked at composition
 
 
 def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = None) -> Path:

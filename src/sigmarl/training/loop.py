@@ -35,7 +35,8 @@ from sigmarl.training.mappo import (
 )
 from sigmarl.training.metrics_file import METRICS_FILE
 from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic, make_sampler
-from sigmarl.training.ppo_loss import LOSSES
+from sigmarl.training.ppo_loss import resolve_precision
+from sigmarl.validate import check
 
 RUN_ID_FILE = "mlflow_run_id"
 CONFIG_FILE = "config.yaml"
@@ -65,33 +66,10 @@ def learning_rate(ppo: PPOConfig, iteration: int) -> float:
     return ppo.lr + (ppo.lr_final - ppo.lr) * frac
 
 
-def _check(cfg: Config) -> None:
-    """Budget sanity, before anything is built."""
-    ppo = cfg.ppo
-    for key in ("iterations", "frames_per_iteration", "num_envs", "epochs", "minibatch_size"):
-        if getattr(ppo, key) < 1:
-            raise SigmarlError(f"ppo.{key} must be positive, got {getattr(ppo, key)}")
-    if ppo.frames_per_iteration % ppo.num_envs:
-        raise SigmarlError(
-            f"ppo.frames_per_iteration={ppo.frames_per_iteration} is not a multiple of "
-            f"ppo.num_envs={ppo.num_envs}"
-        )
-    if ppo.minibatch_size > ppo.frames_per_iteration:
-        raise SigmarlError(
-            f"ppo.minibatch_size={ppo.minibatch_size} exceeds ppo.frames_per_iteration="
-            f"{ppo.frames_per_iteration}"
-        )
-    if ppo.loss not in LOSSES:
-        raise SigmarlError(f"unknown ppo.loss {ppo.loss!r}; choose from {', '.join(LOSSES)}")
-    if cfg.threads < 1:
-        raise SigmarlError(f"threads must be positive, got {cfg.threads}")
-
-
 def _device(name: str) -> torch.device:
-    try:
-        device = torch.device(name)
-    except RuntimeError as e:
-        raise SigmarlError(f"unknown device {name!r} (use cpu or cuda)") from e
+    """The device to train on. Its name was checked at composition; whether this machine has
+    the GPU it names is known only here."""
+    device = torch.device(name)
     if device.type == "cuda" and not torch.cuda.is_available():
         raise SigmarlError("device=cuda but no CUDA GPU is available; use device=cpu")
     return device
@@ -188,12 +166,12 @@ def build(cfg: Config, device: torch.device) -> Parts:
     critic = make_critic(cfg.network, dims["obs_dim"], dims["n_agents"], device)
     optimiser = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=cfg.ppo.lr)
     collector = make_collector(env, make_sampler(actor), cfg.ppo.frames_per_iteration, device)
-    return Parts(env, actor, critic, make_loss(actor, critic, cfg.ppo), make_gae(critic, cfg.ppo),
+    return Parts(env, actor, critic, make_loss(actor, critic, cfg.ppo, resolve_precision(cfg)), make_gae(critic, cfg.ppo),
                  optimiser, dims, collector)
 
 
 def train(cfg: Config) -> TrainResult:
-    _check(cfg)
+    check(cfg)  # a no-op for a composed config; a Config built in code is checked too
     torch.set_num_threads(cfg.threads)
     device = _device(cfg.device)
     run_dir = Path(cfg.run_dir)
