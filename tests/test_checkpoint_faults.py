@@ -75,3 +75,26 @@ def test_a_full_disk_while_a_checkpoint_is_written_is_one_line_and_keeps_the_res
     state = ckpt.load(run_dir / ckpt.RESUME_FILE, resume=True)  # still a valid resume point
     assert state["iteration"] == 0
     assert not [p.name for p in run_dir.iterdir() if p.name.endswith(".tmp")]  # no half-written file
+
+
+def test_a_checkpoint_is_hashed_in_blocks_not_read_whole(tmp_path):
+    import hashlib
+    import tracemalloc
+
+    from sigmarl.compose import compose_config
+    from sigmarl.evaluation.protocol import _identity
+
+    big = tmp_path / "big.pt"
+    block = bytes(range(256)) * 4096  # 1 MiB
+    with big.open("wb") as f:
+        for _ in range(64):
+            f.write(block)
+    cfg = compose_config([])
+    tracemalloc.start()
+    try:
+        digest = _identity(big, cfg)["checkpoint_sha256"]
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert digest == hashlib.sha256(block * 64).hexdigest()
+    assert peak < 8 * 2**20  # the file is 64 MiB

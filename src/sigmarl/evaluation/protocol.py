@@ -101,7 +101,13 @@ def _read_meta(rows_file: Path) -> dict | None:
 
 def _identity(path: Path, cfg: Config) -> dict[str, str]:
     return {"eval_key": records.eval_key(cfg.eval),
-            "checkpoint_sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+            "checkpoint_sha256": _sha256(path)}
+
+
+def _sha256(path: Path) -> str:
+    """The file's SHA-256, read in blocks: a checkpoint may be larger than the memory to spare."""
+    with path.open("rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def _write_atomic(path: Path, text: str) -> None:
