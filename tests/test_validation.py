@@ -102,3 +102,14 @@ def test_the_activation_choices_are_the_networks():
     from sigmarl.validate import Activation
 
     assert set(get_args(Activation)) == set(_ACTIVATIONS)
+
+
+def test_more_agents_than_the_map_can_hold_are_refused_before_the_env_is_built():
+    from conftest import straight_road_map
+
+    from sigmarl.env.factory import make_env
+
+    # one straight 4 m route; spacing 1.2 x the 0.16 x 0.08 m box's diagonal = 0.2147 m:
+    # at most floor(4 / 0.2147) + 1 = 19 vehicles
+    with pytest.raises(SigmarlError, match="env.n_agents=20: map straight holds at most 19 vehicles"):
+        make_env(compose_config([]), num_envs=2, n_agents=20, road_map=straight_road_map())

@@ -12,6 +12,7 @@ from torchrl.envs.libs.vmas import VmasEnv
 
 from sigmarl.env.observation import ObsFlags
 from sigmarl.env.scenario import ScenarioSettings, TrafficScenario
+from sigmarl.env.spawn import MIN_GAP, capacity
 from sigmarl.errors import SigmarlError
 from sigmarl.maps import RoadMap, load_map
 
@@ -136,6 +137,9 @@ def make_env(
     flags = ObsFlags.from_config(cfg.obs)
     validate(n_agents, mode, float(cfg.obs.noise), num_envs, max_steps, flags)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
+    if n_agents > (room := capacity(road_map.routes)):  # fail at once, not after building it all
+        raise SigmarlError(f"env.n_agents={n_agents}: map {road_map.name} holds at most {room} vehicles "
+                           f"{MIN_GAP:.2f} m apart (its routes' length / that spacing); use fewer agents")
     return TrafficEnv(
         scenario=TrafficScenario(),
         num_envs=num_envs,
