@@ -111,5 +111,5 @@ def test_more_agents_than_the_map_can_hold_are_refused_before_the_env_is_built()
 
     # one straight 4 m route; spacing 1.2 x the 0.16 x 0.08 m box's diagonal = 0.2147 m:
     # at most floor(4 / 0.2147) + 1 = 19 vehicles
-    with pytest.raises(SigmarlError, match="env.n_agents=20: map straight holds at most 19 vehicles"):
+    with pytest.raises(SigmarlError, match="could not place 20 agents on map straight: its routes hold at most 19 vehicles"):
         make_env(compose_config([]), num_envs=2, n_agents=20, road_map=straight_road_map())

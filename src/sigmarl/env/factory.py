@@ -138,8 +138,8 @@ def make_env(
     validate(n_agents, mode, float(cfg.obs.noise), num_envs, max_steps, flags)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
     if n_agents > (room := capacity(road_map.routes)):  # fail at once, not after building it all
-        raise SigmarlError(f"env.n_agents={n_agents}: map {road_map.name} holds at most {room} vehicles "
-                           f"{MIN_GAP:.2f} m apart (its routes' length / that spacing); use fewer agents")
+        raise SigmarlError(f"could not place {n_agents} agents on map {road_map.name}: its routes hold at "
+                           f"most {room} vehicles {MIN_GAP:.2f} m apart (env.n_agents); use fewer agents")
     return TrafficEnv(
         scenario=TrafficScenario(),
         num_envs=num_envs,
