@@ -35,8 +35,8 @@ OBS_FLAGS: dict[str, str] = {
     "distance_to_center_line": "DC",
 }
 
-# Scenario name -> (map config name, number of agents), study.md section 3. The first four
-# are the paper's Table I: the CPM map and the paper's own hand-drawn maps (spec §1.2).
+# Scenario name -> (map config name, number of agents), as the paper evaluated them. The first
+# four are the paper's Table I: the CPM map and the paper's own hand-drawn maps.
 # The "Proc-" ones are this project's procedural builders, for generalisation beyond the
 # paper (`study=extended`); they have no numbers in the paper.
 SCENARIOS: dict[str, tuple[str, int]] = {

@@ -1,4 +1,4 @@
-"""Initial and respawn states (spec §6): batched rejection sampling with a spacing rule."""
+"""Initial and respawn states: batched rejection sampling with a spacing rule."""
 
 from __future__ import annotations
 

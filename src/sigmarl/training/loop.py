@@ -29,13 +29,12 @@ from sigmarl.training.mappo import (
     collect,
     make_collector,
     make_gae,
-    make_loss,
     rollout_stats,
     update,
 )
 from sigmarl.training.metrics_file import METRICS_FILE
 from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic, make_sampler
-from sigmarl.training.ppo_loss import resolve_precision
+from sigmarl.training.ppo_loss import make_loss, resolve_precision
 from sigmarl.validate import check
 
 RUN_ID_FILE = "mlflow_run_id"
