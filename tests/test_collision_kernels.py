@@ -10,10 +10,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LineString, Polygon
 
-from sigmarl.env.collision import pairwise_box_overlap, polyline_box_overlap
+from sigmarl.env.collision import pairwise_box_overlap, segment_table, segments_box_overlap
 from sigmarl.env.geometry import rect_corners
 
 L, W = 0.16, 0.08
+
+
+def polyline_box_overlap(
+    polyline: torch.Tensor, pos: torch.Tensor, heading: torch.Tensor, length: float, width: float
+) -> torch.Tensor:
+    """[...] True where any segment of the polyline [..., W, 2] touches the box at pos [..., 2]
+    with heading [...]."""
+    return segments_box_overlap(segment_table(polyline.unsqueeze(-3)), pos, heading, length, width)[..., 0]
 
 
 def _poly(x, y, psi):

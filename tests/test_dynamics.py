@@ -9,10 +9,16 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sigmarl.env.dynamics import bicycle_step, turning_radius
+from sigmarl.env.dynamics import bicycle_step, slip_angle
 
 F64 = torch.float64
 L, LR, DT = 0.16, 0.08, 0.05
+
+
+def turning_radius(steering: torch.Tensor, l_r: float = LR, wheelbase: float = L) -> torch.Tensor:
+    """Radius of the circle the centre of gravity drives at constant steering (inf at delta=0)."""
+    beta = slip_angle(steering, l_r, wheelbase)
+    return wheelbase / (torch.cos(beta) * torch.tan(steering))
 
 
 def t64(x) -> torch.Tensor:

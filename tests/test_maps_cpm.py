@@ -10,8 +10,8 @@ from shapely.geometry import LineString, Point, Polygon
 
 from sigmarl.errors import MapError
 from sigmarl.maps.cpm import CPM_LOOPS, cpm_xml_path, load_cpm, parse_commonroad
-from sigmarl.maps.model import RESAMPLE_STEP
-from sigmarl.maps.routes import build_route, corridor_groups
+from sigmarl.maps.model import RESAMPLE_STEP, Lanelet
+from sigmarl.maps.routes import build_route
 
 SPEC_INTERSECTION = [
     [11, 25, 13], [11, 26, 52, 37], [11, 72, 91], [12, 18, 14], [12, 17, 43, 38], [12, 73, 92],
@@ -34,6 +34,22 @@ def cpm():
 @pytest.fixture(scope="module")
 def cpm_inter():
     return load_cpm("intersection")
+
+
+def corridor_groups(lanelets: dict[int, Lanelet]) -> list[list[int]]:
+    """All same-direction lane groups with more than one lanelet, each listed left to right."""
+    groups = []
+    for la in lanelets.values():
+        if la.adj_left is not None and la.adj_left_same:
+            continue  # not the leftmost
+        group = [la.id]
+        cur = la
+        while cur.adj_right is not None and cur.adj_right_same and cur.adj_right not in group:
+            cur = lanelets[cur.adj_right]
+            group.append(cur.id)
+        if len(group) > 1:
+            groups.append(group)
+    return groups
 
 
 def test_xml_comes_from_installed_vmas():

@@ -12,7 +12,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
-from sigmarl.training.loop import build, train
+from sigmarl.training.loop import build
 from sigmarl.training.mappo import collect
 from sigmarl.training.networks import ACTION, LOG_PROB, OBS, PREIMAGE, make_sampler
 from sigmarl.training.ppo_loss import TERMS, LeanPPOLoss, TorchrlPPOLoss
@@ -94,9 +94,10 @@ def test_lean_loss_scores_the_collected_actions_like_the_sampler(setup) -> None:
 
 
 def test_unknown_loss_is_rejected(tmp_path) -> None:
-    cfg = compose_config(["tracking.enabled=false", "ppo=smoke", "ppo.loss=clipped", f"run_dir={tmp_path}"])
+    # at composition, before anything trains (sigmarl.validate)
     with pytest.raises(SigmarlError, match="ppo.loss"):
-        train(cfg)
+        compose_config(["tracking.enabled=false", "ppo=smoke", "ppo.loss=clipped", f"run_dir={tmp_path}"])
+    assert not any(tmp_path.iterdir())
 
 
 def test_sampler_draws_what_the_probabilistic_actor_draws(setup) -> None:

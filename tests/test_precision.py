@@ -81,15 +81,22 @@ def test_log_probabilities_and_ratios_stay_fp32(setup):
 
 
 def test_precision_choice():
-    assert resolve_precision("fp32", "cpu") == "fp32" and resolve_precision("bf16", "cpu") == "bf16"
-    assert resolve_precision("auto", "cpu") == ("bf16" if cpu_has_native_bf16() else "fp32")
+    def resolved(*overrides):
+        return resolve_precision(compose_config(list(overrides)))
+
+    assert resolved("ppo.precision=fp32") == "fp32" and resolved("ppo.precision=bf16") == "bf16"
+    assert resolved("ppo.precision=auto") == ("bf16" if cpu_has_native_bf16() else "fp32")
+    # torchrl's loss would compute log-probabilities in bf16: auto is fp32 there on any machine
+    assert resolved("ppo.precision=auto", "ppo.loss=torchrl") == "fp32"
     with pytest.raises(SigmarlError, match="ppo.precision"):
-        resolve_precision("fp16", "cpu")
+        compose_config(["ppo.precision=fp16"])
     assert compose_config([]).ppo.precision == "fp32"  # the default stays fp32
 
 
-def test_bf16_with_torchrl_loss_is_refused(setup):
+def test_the_loss_takes_the_precision_resolved_once(setup):
+    # `auto` is resolved by resolve_precision(cfg) alone; the loss never resolves it again
     cfg, parts, _ = setup
-    ppo = replace(cfg.ppo, loss="torchrl", precision="bf16")
-    with pytest.raises(SigmarlError, match="needs ppo.loss=lean"):
-        make_loss(parts.actor, parts.critic, ppo)
+    ppo = replace(cfg.ppo, precision="auto")
+    assert make_loss(parts.actor, parts.critic, ppo, "bf16").precision == "bf16"
+    with pytest.raises(ValueError, match="unresolved"):
+        LeanPPOLoss(parts.actor, parts.critic, ppo)

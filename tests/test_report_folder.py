@@ -133,3 +133,51 @@ def test_report_run_logged_to_mlflow(tmp_path, monkeypatch):
     assert run.info.status == "FINISHED" and run.data.tags["source"] == str(FIXTURE.resolve())
     assert {a.path for a in client.list_artifacts(run.info.run_id)} >= {"table.md", "improvement.csv"}
     assert "CS/CPM/M0" in run.data.metrics
+
+
+def _corrupt(tmp_path: Path, edit) -> tuple[Path, Path]:
+    """A copy of the fixture whose M4 seed1 rows file `edit` (text -> text) changed."""
+    root = tmp_path / "results"
+    shutil.copytree(FIXTURE, root)
+    path = root / "M4" / "seed1" / "evaluation_rows.csv"
+    path.write_text(edit(path.read_text()))
+    return root, path
+
+
+def _set(row: int, column: str, value: str):
+    """Edit: the data row `row`'s `column` set to the text `value`."""
+    def edit(text: str) -> str:
+        frame = pd.read_csv(pd.io.common.StringIO(text), dtype=str, keep_default_na=False)
+        frame.loc[row, column] = value
+        return frame.to_csv(index=False)
+    return edit
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    # killed while written: the last line cut inside the scenario name ("Int" of Intersection)
+    (lambda t: t[: t.rindex(",Intersection,") + 4] + "\n", "unknown scenario 'Int'"),
+    (_set(2, "CR_AA", "nan"), "CR_AA is not a finite number on line 4"),
+    (_set(0, "CR_AL", ""), "CR_AL is not a finite number on line 2"),
+    (_set(5, "CD", "inf"), "CD is not a finite number"),
+    (_set(1, "CR_AA", "-0.1"), "CR_AA is not a rate in [0, 1]"),
+    (_set(1, "CR_total", "1.5"), "CR_total is not a rate in [0, 1]"),
+    (_set(3, "CR_total", "0.9"), "CR_total is not CR_AA + CR_AL on line 5"),
+    (_set(4, "CD", "-2"), "CD (cm from the center line) is negative"),
+    (_set(4, "AS", "3.0"), "AS (m/s) is not in [0, 0.8]"),
+    (_set(4, "AS", "fast"), "AS is not a finite number"),
+    (_set(0, "scenario", "Motorway"), "unknown scenario 'Motorway'"),
+    (_set(0, "simulation", "1.5"), "simulation is not a whole number"),
+    (lambda t: "garbage,header\n" + t.split("\n", 1)[1], "evaluation rows lack the column(s) scenario"),
+])
+def test_a_bad_rows_file_ends_in_one_line_naming_it(tmp_path, capsys, edit, message):
+    root, path = _corrupt(tmp_path, edit)
+    assert report(tmp_path, "out", "--no-figures", source=root) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(path) in err and message in err, err
+    assert not (tmp_path / "out").exists()  # no report of the bad folder
+
+
+def test_rows_as_written_pass_the_checks():
+    # every committed study's rows, float32 sums and rounding included
+    for root in (FIXTURE, Path(__file__).parents[1] / "results" / "paper-budget"):
+        assert len(read_results(root).rows) > 0

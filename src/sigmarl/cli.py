@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import signal
 import sys
 import threading
@@ -134,6 +135,19 @@ def cmd_report(args: argparse.Namespace) -> None:
     print("wrote " + ", ".join(str(p) for p in report.paths.values()))
 
 
+def _disk_full(error: BaseException) -> str | None:
+    """One line for a full disk or quota anywhere in `error`'s chain (a library may wrap the
+    OSError), else None. Whatever was written before stays valid: every file is replaced whole."""
+    seen: set[int] = set()
+    while error is not None and id(error) not in seen:
+        seen.add(id(error))
+        if isinstance(error, OSError) and error.errno in (errno.ENOSPC, errno.EDQUOT):
+            where = f": {error.filename}" if error.filename else ""
+            return f"{error.strerror}{where}; every file written before is intact: free some space and run again"
+        error = error.__cause__ or error.__context__
+    return None
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="sigmarl",
@@ -206,6 +220,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"sigmarl: error: {e}", file=sys.stderr)
         return 2
     except BaseException as e:
+        if (full := _disk_full(e)) is not None:
+            print(f"sigmarl: error: {full}", file=sys.stderr)
+            return 2
         if not was_interrupted(e):
             raise
         terminated = isinstance(e, Terminated) or not isinstance(e, KeyboardInterrupt)

@@ -19,6 +19,7 @@ from omegaconf.errors import OmegaConfBaseException
 from sigmarl.config import Config, MapConfig, as_config, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.paths import conf_dir, config_files, user_conf_dirs
+from sigmarl.validate import check
 
 
 def search_path_override() -> list[str]:
@@ -30,7 +31,8 @@ def search_path_override() -> list[str]:
 
 
 def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> Config:
-    """The resolved config; a bad override raises SigmarlError with Hydra's message (which names the key)."""
+    """The resolved config, checked (`sigmarl.validate.check`) and fingerprinted; a bad override
+    or value raises SigmarlError with a message that names the key."""
     from sigmarl.identity import fingerprint
 
     register_configs()
@@ -42,12 +44,14 @@ def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -
         OmegaConf.resolve(cfg)
     except (HydraException, OmegaConfBaseException) as e:
         raise SigmarlError(f"bad config override: {e}") from e
+    except ValueError as e:  # e.g. an integer too long for Python to parse (over 4300 digits)
+        raise SigmarlError(f"bad config override: {str(e).splitlines()[0]}") from e
     # `+key=value` adds keys the schema does not know (Hydra's own error message even suggests
     # it): a misspelt flag would be silently ignored.
     unknown = _unknown_keys(cfg, OmegaConf.structured(Config))
     if unknown:
         raise SigmarlError(f"unknown config key(s): {', '.join(unknown)}")
-    config = as_config(cfg)
+    config = check(as_config(cfg))
     return replace(config, fingerprint=fingerprint(config))
 
 

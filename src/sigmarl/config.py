@@ -79,7 +79,7 @@ class EnvConfig:
 
     n_agents: int = 4
     max_steps: int = 128  # training episode length (evaluation: eval.steps)
-    # Where vehicles start (spec section 6): training on non-loop routes from spawn_start_m up
+    # Where vehicles start: training on non-loop routes from spawn_start_m up
     # to spawn_end_fraction of the route; testing anywhere but spawn_margin_m at either end.
     spawn_start_m: float = 0.5
     spawn_end_fraction: float = 0.5
@@ -120,7 +120,7 @@ class PPOConfig:
 
 @dataclass
 class EvalConfig:
-    """Evaluation protocol (study.md section 3): the same seed for every model."""
+    """Evaluation protocol: every model faces the same scenarios, simulations and seed."""
 
     # scenario names (conf/scenario/<name>.yaml); conf/config.yaml takes the study's
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))

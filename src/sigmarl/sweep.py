@@ -190,6 +190,8 @@ def _parse(items: Sequence[str]) -> list[Override]:
         return OverridesParser.create().parse_overrides(list(items))
     except HydraException as e:
         raise SigmarlError(f"bad override: {e}") from e
+    except ValueError as e:  # e.g. an integer too long for Python to parse (over 4300 digits)
+        raise SigmarlError(f"bad override: {str(e).splitlines()[0]}") from e
 
 
 def _values(o: Override) -> list[str]:

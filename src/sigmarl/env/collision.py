@@ -39,14 +39,6 @@ def pairwise_box_overlap(pos: torch.Tensor, heading: torch.Tensor, length: float
     return hit & ~eye
 
 
-def polyline_box_overlap(
-    polyline: torch.Tensor, pos: torch.Tensor, heading: torch.Tensor, length: float, width: float
-) -> torch.Tensor:
-    """[...] True where any segment of the polyline [..., W, 2] touches the box at pos [..., 2]
-    with heading [...]."""
-    return segments_box_overlap(segment_table(polyline.unsqueeze(-3)), pos, heading, length, width)[..., 0]
-
-
 def segments_box_overlap(
     table: torch.Tensor, pos: torch.Tensor, heading: torch.Tensor, length: float, width: float
 ) -> torch.Tensor:

@@ -25,12 +25,6 @@ def slip_angle(steering: Tensor, l_r: float = L_R, wheelbase: float = WHEELBASE)
     return torch.atan((l_r / wheelbase) * torch.tan(steering))
 
 
-def turning_radius(steering: Tensor, l_r: float = L_R, wheelbase: float = WHEELBASE) -> Tensor:
-    """Radius of the circle the centre of gravity drives at constant steering (inf at delta=0)."""
-    beta = slip_angle(steering, l_r, wheelbase)
-    return wheelbase / (torch.cos(beta) * torch.tan(steering))
-
-
 def bicycle_step(
     pos: Tensor,
     heading: Tensor,

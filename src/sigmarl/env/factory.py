@@ -13,6 +13,7 @@ from torchrl.envs.libs.vmas import VmasEnv
 from sigmarl.env.observation import ObsFlags
 from sigmarl.env.paper_rules import PaperRules
 from sigmarl.env.scenario import ScenarioSettings, TrafficScenario
+from sigmarl.env.spawn import MIN_GAP, capacity
 from sigmarl.errors import SigmarlError
 from sigmarl.maps import RoadMap, load_map
 
@@ -141,6 +142,9 @@ def make_env(
     flags = ObsFlags.from_config(cfg.obs)
     validate(n_agents, mode, float(cfg.obs.noise), num_envs, max_steps, flags)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
+    if n_agents > (room := capacity(road_map.routes)):  # fail at once, not after building it all
+        raise SigmarlError(f"could not place {n_agents} agents on map {road_map.name}: its routes hold at "
+                           f"most {room} vehicles {MIN_GAP:.2f} m apart (env.n_agents); use fewer agents")
     return TrafficEnv(
         scenario=TrafficScenario(),
         num_envs=num_envs,

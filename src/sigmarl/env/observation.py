@@ -1,4 +1,4 @@
-"""The observation vector (spec §3): five switchable strategies, constant normalisers.
+"""The observation vector: five switchable strategies, constant normalisers.
 
 Pure function of the batched state; every tensor is [E, A, ...].
 """

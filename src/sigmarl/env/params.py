@@ -1,5 +1,5 @@
 """The paper's constants, in one home: the vehicle, the sample time, the observation's
-normalisers and the reward's weights (spec §2-§4). Every env module reads them from here."""
+normalisers and the reward's weights. Every env module reads them from here."""
 
 from __future__ import annotations
 

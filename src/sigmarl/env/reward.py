@@ -1,4 +1,4 @@
-"""The per-agent reward (spec §4), term by term, batched over [E, A]."""
+"""The per-agent reward, term by term, batched over [E, A]."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ class RewardInputs:
 
 
 def reward_terms(x: RewardInputs) -> dict[str, torch.Tensor]:
-    """Each term of spec §4 as an [E, A] tensor (before the clamp)."""
+    """Each term of the paper's reward as an [E, A] tensor (before the clamp)."""
     w = x.pos.new_tensor(REWARD.ref_weights[: x.prev_ref_points.shape[-2]])
     r = x.prev_ref_points - x.prev_pos.unsqueeze(-2)  # [E, A, P, 2]
     step = (x.pos - x.prev_pos).unsqueeze(-2)

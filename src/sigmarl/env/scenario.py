@@ -94,7 +94,7 @@ def _proven(probe: torch.Tensor, center: torch.Tensor, dist: torch.Tensor, reach
 
 
 class TrafficScenario(BaseScenario):
-    """Connected automated vehicles following routes on a road map (spec §2-§6)."""
+    """Connected automated vehicles following routes on a road map."""
 
     def make_world(self, batch_dim: int, device: torch.device, **kwargs) -> World:
         # VMAS passes the scenario's settings as keyword arguments: one typed object, built by

@@ -1,4 +1,4 @@
-"""Initial and respawn states (spec §6): batched rejection sampling with a spacing rule."""
+"""Initial and respawn states: batched rejection sampling with a spacing rule."""
 
 from __future__ import annotations
 
@@ -11,6 +11,15 @@ from sigmarl.maps.model import RESAMPLE_STEP
 
 MIN_GAP = 1.2 * VEHICLE.diagonal  # 0.2147 m
 MAX_TRIES = 200
+
+
+def capacity(routes: list) -> int:
+    """An upper bound on how many vehicles a map's routes hold MIN_GAP apart: vehicles start on
+    a route's center line, and points of one polyline MIN_GAP apart (straight) are at least
+    MIN_GAP apart along it, so a route of length L holds at most L / MIN_GAP + 1. Routes that
+    share lanes are counted twice, so the bound is loose but safe: more agents than this can
+    never be placed, and are refused before the environment is built."""
+    return sum(int(route.length / MIN_GAP) + 1 for route in routes)
 
 
 def spawn_index_range(bank: RouteBank, train: bool, start_m: float, end_fraction: float,

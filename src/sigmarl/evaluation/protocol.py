@@ -34,9 +34,7 @@ from sigmarl.tracking import connect, experiment_id, records
 def checkpoint_name(which: str) -> str:
     from sigmarl.training import checkpoint as ckpt
 
-    if which not in ("best", "final"):
-        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {which!r}")
-    return ckpt.BEST_FILE if which == "best" else ckpt.FINAL_FILE
+    return {"best": ckpt.BEST_FILE, "final": ckpt.FINAL_FILE}[which]  # checked at composition
 
 
 def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = None) -> Path:
@@ -115,7 +113,13 @@ def _read_meta(rows_file: Path) -> dict | None:
 
 def _identity(path: Path, cfg: Config) -> dict[str, str]:
     return {"eval_key": records.eval_key(cfg.eval),
-            "checkpoint_sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+            "checkpoint_sha256": _sha256(path)}
+
+
+def _sha256(path: Path) -> str:
+    """The file's SHA-256, read in blocks: a checkpoint may be larger than the memory to spare."""
+    with path.open("rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | None:

@@ -1,4 +1,4 @@
-"""Procedural test maps (spec §1.2): a four-arm intersection, an on-ramp and a roundabout.
+"""Procedural test maps: a four-arm intersection, an on-ramp and a roundabout.
 
 The paper's test maps were drawn by hand in JOSM; these builders draw maps of
 the same scale from a few parameters (MapConfig), so users can vary them.

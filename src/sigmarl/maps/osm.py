@@ -1,4 +1,4 @@
-"""Maps drawn by users in JOSM (spec §1.3): two OSM dialects, detected automatically.
+"""Maps drawn by users in JOSM: two OSM dialects, detected automatically.
 
 * Center-line ways (SigmaRL style): every `way` tagged `lanes=<int>` is one
   lanelet's center line, its `nd` refs in driving order; the integer is the

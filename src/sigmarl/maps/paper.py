@@ -1,4 +1,4 @@
-"""The paper's three hand-drawn test maps (spec §1.2), shipped as center-line OSM files.
+"""The paper's three hand-drawn test maps, shipped as center-line OSM files.
 
 SigmaRL's authors drew their Intersection, On-Ramp and Roundabout in JOSM as center-line
 ways (lane width 0.20 m). The files in `sigmarl/data/maps/` are written from the measured

@@ -121,22 +121,6 @@ def infer_adjacency(lanelets: dict[int, Lanelet], tol: float = 1e-3) -> None:
                 break
 
 
-def corridor_groups(lanelets: dict[int, Lanelet]) -> list[list[int]]:
-    """All same-direction lane groups with more than one lanelet, each listed left to right."""
-    groups = []
-    for la in lanelets.values():
-        if la.adj_left is not None and la.adj_left_same:
-            continue  # not the leftmost
-        group = [la.id]
-        cur = la
-        while cur.adj_right is not None and cur.adj_right_same and cur.adj_right not in group:
-            cur = lanelets[cur.adj_right]
-            group.append(cur.id)
-        if len(group) > 1:
-            groups.append(group)
-    return groups
-
-
 def build_route(
     name: str,
     ids: Sequence[int],

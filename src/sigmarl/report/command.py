@@ -180,4 +180,4 @@ def _animations(path: Path, cfg: Config, out_dir: Path, steps: int, scenarios: l
     collects the files)."""
     from sigmarl.evaluation.animation import animate_checkpoint
 
-    return animate_checkpoint(path, scenarios, steps, int(cfg.eval.seed), out_dir)
+    return animate_checkpoint(path, scenarios, steps, int(cfg.eval.seed), out_dir, device=cfg.device)

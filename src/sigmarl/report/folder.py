@@ -19,14 +19,21 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from sigmarl.ablation import MODELS, TIMINGS
-from sigmarl.env.params import RULES_REVISION
+from sigmarl.env.params import RULES_REVISION, VEHICLE
 from sigmarl.errors import SigmarlError
+from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
 from sigmarl.run import METRICS_FILE, REWARD, ROWS_FILE, ROWS_META
+from sigmarl.scenarios import scenario_names
 
 _SEED_DIR = re.compile(r"seed(-?\d+)")
+RATES = COLLISION_COLUMNS  # fractions of a simulation's steps
+# Speeds are averaged in float32 and written to 8 significant digits: AS may exceed the top
+# speed by rounding only.
+AS_MAX = VEHICLE.max_speed + 1e-4
 
 
 @dataclass(frozen=True)
@@ -71,10 +78,45 @@ def _read_csv(path: Path) -> pd.DataFrame:
         raise SigmarlError(f"{path} is not a readable CSV: {str(e).splitlines()[0]}") from e
 
 
+def check_rows(rows: pd.DataFrame, path: Path) -> pd.DataFrame:
+    """`rows` (as read from `path`) if they are evaluation rows a report can trust: the
+    columns, known scenario names, whole simulation numbers, finite metrics, rates in [0, 1]
+    with CR_total = CR_AA + CR_AL, CD >= 0 and AS in [0, top speed]. A truncated or edited
+    file fails here, in one line naming it, instead of adding a made-up scenario or dropping
+    a seed from the table."""
+    missing = [c for c in ("scenario", *METRIC_COLUMNS) if c not in rows.columns]
+    if missing:
+        raise SigmarlError(f"{path}: evaluation rows lack the column(s) {', '.join(missing)}")
+
+    def bad(what: str, mask: pd.Series) -> None:
+        if mask.any():
+            first, more = int(np.flatnonzero(mask.to_numpy())[0]), int(mask.sum()) - 1
+            raise SigmarlError(f"{path}: {what} on line {first + 2}"  # the header is line 1
+                               + (f" and {more} more" if more else ""))
+
+    scenario = rows["scenario"].astype(str)
+    unknown = ~scenario.isin(scenario_names())  # conf/scenario, a user's folders included
+    bad(f"unknown scenario {scenario[unknown].iloc[0] if unknown.any() else ''!r}", unknown)
+    numbers = [c for c in ("simulation", *METRIC_COLUMNS) if c in rows.columns]  # older files lack simulation
+    metrics = rows[numbers].apply(pd.to_numeric, errors="coerce").astype(float)
+    for column in metrics:
+        bad(f"{column} is not a finite number", ~np.isfinite(metrics[column]))
+    if "simulation" in metrics:
+        bad("simulation is not a whole number >= 0", (metrics["simulation"] < 0) | (metrics["simulation"] % 1 != 0))
+    for column in RATES:
+        bad(f"{column} is not a rate in [0, 1]", (metrics[column] < 0) | (metrics[column] > 1))
+    parts = metrics["CR_AA"] + metrics["CR_AL"]
+    bad("CR_total is not CR_AA + CR_AL", (metrics["CR_total"] - parts).abs() > 1e-6 + 1e-5 * parts)
+    bad("CD (cm from the center line) is negative", metrics["CD"] < 0)
+    bad(f"AS (m/s) is not in [0, {VEHICLE.max_speed}]", (metrics["AS"] < 0) | (metrics["AS"] > AS_MAX))
+    return rows
+
+
 def _rows_of(run: RunFolder) -> pd.DataFrame:
-    """The run's evaluation rows, its model and seed checked against the folder's names."""
+    """The run's evaluation rows, checked (`check_rows`), and its model and seed checked
+    against the folder's names."""
     path = run.path / ROWS_FILE
-    rows = _read_csv(path)
+    rows = check_rows(_read_csv(path), path)
     if "seed" not in rows.columns:
         rows.insert(0, "seed", run.seed)
     if "model" not in rows.columns:

@@ -2,14 +2,17 @@
 
 One evaluation run per trained model (tag kind=evaluation, per-simulation rows as a CSV
 artifact, scenario means as metrics), one report run per `sigmarl report`, and the reads
-the report needs. A run that a kill left RUNNING is deleted before its job is logged again,
-so the store ends with one evaluation run per job and none left RUNNING.
+the report needs. An evaluation run that a kill left RUNNING is deleted before its job is
+logged again, so the store ends with one evaluation run per job and none left RUNNING; a
+report run a kill left RUNNING is ended KILLED by the next report.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
+import socket
 import tempfile
 import time
 from collections.abc import Iterable
@@ -28,6 +31,8 @@ from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking.store import experiment_id
 
 ROWS_ARTIFACT = ROWS_FILE
+# The process that logs a report run, so that a later report can tell a dead one's run
+OWNER_HOST, OWNER_PID = "sigmarl.host", "sigmarl.pid"
 
 
 def eval_key(eval_cfg: EvalConfig) -> str:
@@ -187,11 +192,14 @@ def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable
                tags: dict[str, str]) -> str:
     """A report run: the table files, figures and composite scores, with what it was built from."""
     exp_id = experiment_id(client, experiment, create=True)
-    run = client.create_run(exp_id, run_name="report", tags={"kind": "report", **tags})
+    end_dead_reports(client, exp_id)
+    owner = {OWNER_HOST: socket.gethostname(), OWNER_PID: str(os.getpid())}
+    run = client.create_run(exp_id, run_name="report", tags={"kind": "report", **owner, **tags})
     rid = run.info.run_id
     try:
         for _, r in composite.dropna(subset=["CS"]).iterrows():
             client.log_metric(rid, f"CS/{r['scenario']}/{r['model']}", float(r["CS"]))
+        crash.point("report:logging")
         for path in paths:
             client.log_artifact(rid, str(path))
         client.set_terminated(rid, "FINISHED")
@@ -199,3 +207,30 @@ def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable
         _end(client, rid, e)
         raise
     return rid
+
+
+def end_dead_reports(client, exp_id: str) -> list[str]:
+    """End KILLED the report runs left RUNNING by a process that no longer lives (`kill -9`,
+    a power cut: no handler ran to end them). A run names its process by host and pid; only
+    runs of this host can be checked, and a pid reused since keeps its run RUNNING until that
+    process ends too (never a live report ended)."""
+    host = socket.gethostname()
+    ended = []
+    for run in client.search_runs([exp_id], filter_string="tags.kind = 'report' and attributes.status = 'RUNNING'"):
+        tags = run.data.tags
+        if tags.get(OWNER_HOST) != host or not tags.get(OWNER_PID, "").isdigit():
+            continue
+        if not _alive(int(tags[OWNER_PID])):
+            client.set_terminated(run.info.run_id, "KILLED")
+            ended.append(run.info.run_id)
+    return ended
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)  # signal 0: only whether the process exists
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, another user's
+        return True
+    return True

@@ -7,7 +7,8 @@ small (kind "policy"): the policy's weights and what loading and evaluating it n
 (config, dims, iteration, reward). Any of the three loads with `load_policy`.
 
 Everything read back is validated: a file that is not a checkpoint, lacks a key, or holds
-weights whose names or shapes differ from the network its config builds is one SigmarlError.
+weights that are not finite or whose names or shapes differ from the network its config
+builds is one SigmarlError.
 """
 
 from __future__ import annotations
@@ -39,8 +40,17 @@ def policy_only(state: dict[str, Any]) -> dict[str, Any]:
 
 
 def save_atomic(state: dict[str, Any], path: Path) -> None:
-    """A checkpoint written whole or not at all (`sigmarl.run.write_atomic`)."""
-    write_atomic(path, lambda f: torch.save(state, f))
+    """A checkpoint written whole or not at all (`sigmarl.run.write_atomic`); a failed write (a
+    full disk) is one line, and the previous checkpoint is kept."""
+    try:
+        write_atomic(path, lambda f: torch.save(state, f))
+    except BaseException as e:
+        # torch reports a failed write (a full disk) as a RuntimeError around the OSError
+        cause = e if isinstance(e, OSError) else e.__context__ if isinstance(e, RuntimeError) else None
+        if isinstance(cause, OSError):
+            kept = " (the previous one is kept)" if path.exists() else ""
+            raise SigmarlError(f"cannot write checkpoint {path}: {cause.strerror or cause}{kept}") from e
+        raise
 
 
 def load(path: Path, device: str | torch.device = "cpu", resume: bool = False) -> dict[str, Any]:
@@ -67,6 +77,9 @@ def load(path: Path, device: str | torch.device = "cpu", resume: bool = False) -
     for key in ("policy", "critic"):
         if key in needed and not _tensor_dict(state[key]):
             raise SigmarlError(f"checkpoint {path}: {key!r} is not a dict of tensors")
+        if key in needed and (bad := _not_finite(state[key])):
+            # a diverged training's weights: the rollout would fail deep inside the simulator
+            raise SigmarlError(f"checkpoint {path}: {key} tensor {bad} holds NaN or infinite values")
     if not isinstance(state["config"], dict) or not isinstance(state["iteration"], int):
         raise SigmarlError(f"checkpoint {path}: 'config' or 'iteration' is malformed")
     return state
@@ -79,6 +92,11 @@ def config_of(state: dict[str, Any], path: Path) -> Config:
 
 def _tensor_dict(d: Any) -> bool:
     return isinstance(d, Mapping) and all(isinstance(v, torch.Tensor) for v in d.values())
+
+
+def _not_finite(weights: Mapping[str, torch.Tensor]) -> str | None:
+    """The name of the first floating-point tensor with a NaN or an infinity, if any."""
+    return next((k for k, t in weights.items() if t.is_floating_point() and not torch.isfinite(t).all()), None)
 
 
 def _check_dims(dims: Any, path: Path) -> None:

@@ -30,13 +30,13 @@ from sigmarl.training.mappo import (
     collect,
     make_collector,
     make_gae,
-    make_loss,
     rollout_stats,
     update,
 )
 from sigmarl.training.metrics_file import METRICS_FILE
 from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic, make_sampler
-from sigmarl.training.ppo_loss import LOSSES
+from sigmarl.training.ppo_loss import make_loss, resolve_precision
+from sigmarl.validate import check
 
 # what a resume must share with the interrupted run (anything else, e.g. threads, device,
 # evaluation settings, may change); ppo.stop_after is the interruption itself
@@ -64,33 +64,10 @@ def learning_rate(ppo: PPOConfig, iteration: int) -> float:
     return ppo.lr + (ppo.lr_final - ppo.lr) * frac
 
 
-def _check(cfg: Config) -> None:
-    """Budget sanity, before anything is built."""
-    ppo = cfg.ppo
-    for key in ("iterations", "frames_per_iteration", "num_envs", "epochs", "minibatch_size"):
-        if getattr(ppo, key) < 1:
-            raise SigmarlError(f"ppo.{key} must be positive, got {getattr(ppo, key)}")
-    if ppo.frames_per_iteration % ppo.num_envs:
-        raise SigmarlError(
-            f"ppo.frames_per_iteration={ppo.frames_per_iteration} is not a multiple of "
-            f"ppo.num_envs={ppo.num_envs}"
-        )
-    if ppo.minibatch_size > ppo.frames_per_iteration:
-        raise SigmarlError(
-            f"ppo.minibatch_size={ppo.minibatch_size} exceeds ppo.frames_per_iteration="
-            f"{ppo.frames_per_iteration}"
-        )
-    if ppo.loss not in LOSSES:
-        raise SigmarlError(f"unknown ppo.loss {ppo.loss!r}; choose from {', '.join(LOSSES)}")
-    if cfg.threads < 1:
-        raise SigmarlError(f"threads must be positive, got {cfg.threads}")
-
-
 def _device(name: str) -> torch.device:
-    try:
-        device = torch.device(name)
-    except RuntimeError as e:
-        raise SigmarlError(f"unknown device {name!r} (use cpu or cuda)") from e
+    """The device to train on. Its name was checked at composition; whether this machine has
+    the GPU it names is known only here."""
+    device = torch.device(name)
     if device.type == "cuda" and not torch.cuda.is_available():
         raise SigmarlError("device=cuda but no CUDA GPU is available; use device=cpu")
     return device
@@ -187,14 +164,14 @@ def build(cfg: Config, device: torch.device) -> Parts:
     critic = make_critic(cfg.network, dims["obs_dim"], dims["n_agents"], device)
     optimiser = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=cfg.ppo.lr)
     collector = make_collector(env, make_sampler(actor), cfg.ppo.frames_per_iteration, device)
-    return Parts(env, actor, critic, make_loss(actor, critic, cfg.ppo), make_gae(critic, cfg.ppo),
+    return Parts(env, actor, critic, make_loss(actor, critic, cfg.ppo, resolve_precision(cfg)), make_gae(critic, cfg.ppo),
                  optimiser, dims, collector)
 
 
 def train(cfg: Config) -> TrainResult:
     """Train (or resume, or complete) the run of `cfg` in its run folder, which this process
     holds for the whole time (a second process is refused in one line)."""
-    _check(cfg)
+    check(cfg)  # a no-op for a composed config; a Config built in code is checked too
     run_dir = Path(cfg.run_dir)
     ensure_writable(run_dir.parent, "choose another run_dir=...")
     with Run(run_dir).lock():

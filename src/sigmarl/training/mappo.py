@@ -27,10 +27,9 @@ from sigmarl.training.ppo_loss import (
     VALUE_TARGET,
     LeanPPOLoss,
     TorchrlPPOLoss,
-    make_loss,
 )
 
-__all__ = ["collect", "make_collector", "make_gae", "make_loss", "rollout_stats", "update"]
+__all__ = ["collect", "make_collector", "make_gae", "rollout_stats", "update"]
 
 def make_gae(critic: TensorDictModule, ppo: PPOConfig) -> GAE:
     gae = GAE(gamma=ppo.gamma, lmbda=ppo.lmbda, value_network=critic, average_gae=False, time_dim=1)

@@ -25,15 +25,8 @@ PREIMAGE = ("agents", "action_preimage")  # the Gaussian sample before tanh
 LOC, SCALE = ("agents", "loc"), ("agents", "scale")
 VALUE = ("agents", "state_value")
 
+# the choices of network.activation (sigmarl.validate.Activation, checked at composition)
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
-
-
-def _activation(name: str) -> type[nn.Module]:
-    from sigmarl.errors import SigmarlError
-
-    if name not in _ACTIVATIONS:
-        raise SigmarlError(f"unknown network.activation {name!r}; choose from {sorted(_ACTIVATIONS)}")
-    return _ACTIVATIONS[name]
 
 
 def make_actor(
@@ -59,7 +52,7 @@ def make_actor(
         device=device,
         depth=len(net.hidden),
         num_cells=list(net.hidden),
-        activation_class=_activation(net.activation),
+        activation_class=_ACTIVATIONS[net.activation],
     )
     # scale = softplus shifted so that a zero input gives 1, floored at scale_floor
     params = NormalParamExtractor(scale_mapping=f"biased_softplus_1.0_{net.scale_floor}")
@@ -92,7 +85,7 @@ def make_critic(
         device=device,
         depth=len(net.hidden),
         num_cells=list(net.hidden),
-        activation_class=_activation(net.activation),
+        activation_class=_ACTIVATIONS[net.activation],
     )
     return TensorDictModule(mlp, in_keys=[OBS], out_keys=[VALUE])
 

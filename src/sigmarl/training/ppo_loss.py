@@ -31,8 +31,7 @@ from torch import nn
 from torchrl.modules import ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss
 
-from sigmarl.config import PPOConfig
-from sigmarl.errors import SigmarlError
+from sigmarl.config import Config, PPOConfig
 from sigmarl.training.networks import (
     ACTION,
     LOG_PROB,
@@ -51,8 +50,6 @@ ADVANTAGE, VALUE_TARGET = ("agents", "advantage"), ("agents", "value_target")
 TERMS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "clip_fraction", "kl_approx")
 # what the update needs from a rollout
 TRAIN_KEYS = [OBS, ACTION, LOG_PROB, ADVANTAGE, VALUE_TARGET]
-LOSSES = ("lean", "torchrl")
-PRECISIONS = ("fp32", "bf16", "auto")
 
 
 @cache
@@ -66,13 +63,17 @@ def cpu_has_native_bf16() -> bool:
     return "avx512_bf16" in flags or "amx_bf16" in flags
 
 
-def resolve_precision(precision: str, device: torch.device | str) -> str:
-    """fp32 or bf16 for `ppo.precision` on `device` (auto: bf16 only where it is native)."""
-    if precision not in PRECISIONS:
-        raise SigmarlError(f"ppo.precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
-    if precision != "auto":
-        return precision
-    kind = torch.device(device).type
+def resolve_precision(cfg: Config) -> str:
+    """What `ppo.precision` means on this machine: "fp32" or "bf16". `auto` is bf16 only where
+    the device computes it natively and the loss is the lean one (ClipPPOLoss would compute
+    log-probabilities in bf16). The one place `auto` is resolved: training uses the value
+    this returns, and a run can record it."""
+    ppo = cfg.ppo
+    if ppo.precision != "auto":
+        return ppo.precision
+    if ppo.loss != "lean":
+        return "fp32"
+    kind = torch.device(cfg.device).type
     if kind == "cpu":
         return "bf16" if cpu_has_native_bf16() else "fp32"
     return "bf16" if kind == "cuda" and torch.cuda.is_bf16_supported() else "fp32"
@@ -111,14 +112,19 @@ class TorchrlPPOLoss:
 class LeanPPOLoss:
     """Clipped PPO (objective, smooth-L1 critic, one-sample entropy of the tanh-Gaussian)."""
 
-    def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: PPOConfig):
+    def __init__(self, actor: ProbabilisticActor, critic: nn.Module, ppo: PPOConfig,
+                 precision: str | None = None):
+        """`precision`: "fp32" or "bf16", as `resolve_precision` gives it (default: ppo.precision,
+        which must then be one of the two)."""
         self.head = PolicyHead(actor)
         self.value = plain_forward(critic.module)
         self.clip = (math.log1p(-ppo.clip_epsilon), math.log1p(ppo.clip_epsilon))
         self.entropy_coef = ppo.entropy_coef
         self.normalize_advantage = ppo.normalize_advantage
         device = next(critic.parameters()).device
-        self.precision = resolve_precision(ppo.precision, device)
+        self.precision = precision or ppo.precision
+        if self.precision not in ("fp32", "bf16"):
+            raise ValueError(f"unresolved precision {self.precision!r}: pass resolve_precision(cfg)")
         self.autocast = (partial(torch.autocast, device.type, dtype=torch.bfloat16)
                          if self.precision == "bf16" else contextlib.nullcontext)
 
@@ -177,10 +183,10 @@ class LeanPPOLoss:
         return total, terms
 
 
-def make_loss(actor: ProbabilisticActor, critic: nn.Module, ppo: PPOConfig) -> LeanPPOLoss | TorchrlPPOLoss:
+def make_loss(actor: ProbabilisticActor, critic: nn.Module, ppo: PPOConfig,
+              precision: str) -> LeanPPOLoss | TorchrlPPOLoss:
+    """The loss `ppo.loss` names; `precision` is `resolve_precision(cfg)` (always fp32 for
+    torchrl's loss: an explicit bf16 with it is refused when the config is composed)."""
     if ppo.loss == "torchrl":
-        if resolve_precision(ppo.precision, next(critic.parameters()).device) != "fp32":
-            raise SigmarlError("ppo.precision=bf16 needs ppo.loss=lean (ClipPPOLoss would compute "
-                               "log-probabilities in bf16)")
         return TorchrlPPOLoss(actor, critic, ppo)
-    return LeanPPOLoss(actor, critic, ppo)
+    return LeanPPOLoss(actor, critic, ppo, precision)

@@ -1,0 +1,158 @@
+"""One check of a composed config, before any run folder, MLflow run or environment exists.
+
+Every command and every sweep job goes through `compose.compose_config`, which calls `check`:
+a bad value ends there in one `SigmarlError` naming the key, instead of deep inside the
+environment, the training loop or MLflow (where it left a FAILED run behind).
+
+The config's string choices stay plain `str` fields (OmegaConf's structured configs do not
+take `Literal`, and an `Enum` would change what config.yaml, checkpoints and MLflow params
+hold); their allowed values are the `Literal` types below, checked here.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, get_args
+
+from sigmarl.ablation import check_eval
+from sigmarl.config import Config
+from sigmarl.errors import SigmarlError
+
+MapKind = Literal["cpm", "intersection", "on_ramp", "roundabout", "osm"]
+RouteSet = Literal["intersection", "loops"]  # the CPM map's
+Activation = Literal["tanh", "relu", "elu"]
+Loss = Literal["lean", "torchrl"]
+Precision = Literal["fp32", "bf16", "auto"]
+Checkpoint = Literal["best", "final"]
+DeviceType = Literal["cpu", "cuda"]
+
+# numpy's legacy generator (np.random.seed) takes seeds in 0..2**32-1, torch any up to 2**64-1
+SEED_MAX = 2**32 - 1
+# An experiment names a folder (runs/<experiment>) and a row in MLflow's store: a path
+# component holds at most 255 bytes, MLflow's SQL schema 256 characters.
+EXPERIMENT_MAX_BYTES = 255
+# Reference points are slots of the environment's center-line window, which reaches 6
+# resampled points ahead of the vehicle's own (env.scenario.LINE_WINDOW).
+MAX_REF_REACH = 6
+
+
+def choice(key: str, value: str, allowed: type) -> str:
+    """`value` if it is one of the `Literal` type's values, else one line naming `key`."""
+    options = get_args(allowed)
+    if value not in options:
+        raise SigmarlError(f"{key}={value!r} is not one of {', '.join(options)}")
+    return value
+
+
+def _positive(prefix: str, node: object, keys: tuple[str, ...], strict: bool = True) -> None:
+    for key in keys:
+        value = getattr(node, key)
+        if value < 0 or (strict and value == 0):
+            raise SigmarlError(f"{prefix}.{key} must be {'positive' if strict else '>= 0'}, got {value}")
+
+
+def device_type(device: str) -> str:
+    """cpu or cuda for `device` (`cuda:1` is cuda). Whether a GPU exists is checked where the
+    device is used, not here: a sweep composes its jobs on a machine that may have none."""
+    return choice("device", device.split(":", 1)[0], DeviceType)
+
+
+def check(cfg: Config) -> Config:
+    """`cfg` if every value is usable; otherwise one SigmarlError naming the key."""
+    if not 0 <= cfg.seed <= SEED_MAX:
+        raise SigmarlError(f"seed must be in 0..{SEED_MAX}, got {_short(cfg.seed)}")
+    if cfg.threads < 1:
+        raise SigmarlError(f"threads must be positive, got {cfg.threads}")
+    device_type(cfg.device)
+    _check_map(cfg)
+    obs = cfg.obs
+    _positive("obs", obs, ("n_nearest", "noise"), strict=False)
+    _positive("obs", obs, ("n_ref_points", "ref_point_stride"))
+    if obs.n_ref_points > 3:
+        raise SigmarlError(f"obs.n_ref_points must be 1..3, got {obs.n_ref_points}")
+    if obs.n_ref_points * obs.ref_point_stride > MAX_REF_REACH:
+        raise SigmarlError(
+            f"obs.n_ref_points x obs.ref_point_stride must be at most {MAX_REF_REACH} (the reference "
+            f"points lie in the {MAX_REF_REACH} center-line points ahead), got "
+            f"{obs.n_ref_points} x {obs.ref_point_stride}")
+    _positive("env", cfg.env, ("n_agents", "max_steps"))
+    _positive("env", cfg.env, ("spawn_start_m", "spawn_margin_m"), strict=False)
+    if not 0 < cfg.env.spawn_end_fraction <= 1:
+        raise SigmarlError(f"env.spawn_end_fraction must be in (0, 1], got {cfg.env.spawn_end_fraction}")
+    choice("network.activation", cfg.network.activation, Activation)
+    if not cfg.network.hidden or min(cfg.network.hidden) < 1:
+        raise SigmarlError(f"network.hidden must be positive layer sizes, got {cfg.network.hidden}")
+    _check_ppo(cfg)
+    check_eval(cfg.eval)
+    _check_experiment(cfg.tracking.experiment)
+    _check_study(cfg)
+    return cfg
+
+
+def _check_study(cfg: Config) -> None:
+    """The study's declaration (conf/study/*.yaml) and the run's label."""
+    from sigmarl.identity import check_label
+    from sigmarl.metrics import metric
+
+    study = cfg.study
+    check_label(cfg.model)
+    for label, overrides in study.variants.items():
+        check_label(label)
+        if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
+            raise SigmarlError(f"study.variants.{label} must be a list of overrides, e.g. [obs=full]")
+    if study.variants and study.baseline not in study.variants:
+        raise SigmarlError(f"study.baseline {study.baseline!r} is not one of the study's variants "
+                           f"({', '.join(study.variants)})")
+    if any(s < 0 or s > SEED_MAX for s in study.seeds):
+        raise SigmarlError(f"study.seeds must be in 0..{SEED_MAX}, got {study.seeds}")
+    for name in [*study.metrics, *study.margins]:
+        metric(name)  # an unknown metric name ends here
+    for name, margin in study.margins.items():
+        if not margin > 0:
+            raise SigmarlError(f"study.margins.{name} must be positive, got {margin}")
+    if study.max_seeds < 2:
+        raise SigmarlError(f"study.max_seeds must be at least 2, got {study.max_seeds}")
+
+
+def _check_map(cfg: Config) -> None:
+    m = cfg.map
+    kind = choice("map.kind", m.kind, MapKind)
+    if kind == "cpm":
+        choice("map.route_set", m.route_set, RouteSet)
+    if kind == "osm" and not m.path:
+        raise SigmarlError("map.kind=osm needs map.path=<file.osm>")
+    if m.lane_width <= 0:
+        raise SigmarlError(f"map.lane_width must be positive, got {m.lane_width}")
+
+
+def _check_ppo(cfg: Config) -> None:
+    ppo = cfg.ppo
+    _positive("ppo", ppo, ("iterations", "frames_per_iteration", "num_envs", "epochs", "minibatch_size",
+                           "checkpoint_every"))
+    _positive("ppo", ppo, ("lr", "lr_final", "clip_epsilon", "max_grad_norm", "gamma", "lmbda",
+                           "entropy_coef", "stop_after"), strict=False)
+    if ppo.frames_per_iteration % ppo.num_envs:
+        raise SigmarlError(f"ppo.frames_per_iteration={ppo.frames_per_iteration} is not a multiple of "
+                           f"ppo.num_envs={ppo.num_envs}")
+    if ppo.minibatch_size > ppo.frames_per_iteration:
+        raise SigmarlError(f"ppo.minibatch_size={ppo.minibatch_size} exceeds ppo.frames_per_iteration="
+                           f"{ppo.frames_per_iteration}")
+    choice("ppo.loss", ppo.loss, Loss)
+    choice("ppo.precision", ppo.precision, Precision)
+    # ClipPPOLoss would compute log-probabilities in bf16. Only an explicit bf16 is refused
+    # here: what `auto` becomes depends on the machine that trains, resolved there.
+    if ppo.loss == "torchrl" and ppo.precision == "bf16":
+        raise SigmarlError("ppo.precision=bf16 needs ppo.loss=lean (ClipPPOLoss would compute "
+                           "log-probabilities in bf16)")
+
+
+def _check_experiment(name: str) -> None:
+    if not name.strip():
+        raise SigmarlError("tracking.experiment is empty")
+    if len(name.encode()) > EXPERIMENT_MAX_BYTES:
+        raise SigmarlError(f"tracking.experiment is {len(name.encode())} bytes long ({name[:40]!r}...); "
+                           f"at most {EXPERIMENT_MAX_BYTES} (it names the folder runs/<experiment>)")
+
+
+def _short(n: int) -> str:
+    """`n`, or its size where printing it would flood the line (or exceed Python's int-to-str limit)."""
+    return str(n) if n.bit_length() < 128 else f"a number of {n.bit_length()} bits"
