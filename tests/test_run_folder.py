@@ -155,3 +155,31 @@ def test_two_sweeps_at_once_train_each_folder_once(tmp_path):
     out, err = third.communicate(timeout=600)
     assert third.returncode == 0 and "trained and evaluated" in out
     assert _finished_evaluations(store) == 1
+
+
+def test_a_resume_that_would_compute_in_another_precision_is_refused(tmp_path):
+    """`ppo.precision=auto` resolves per machine; the resolved value is recorded in the
+    checkpoint, and a resume on a machine that resolves it otherwise says so instead of silently
+    switching precision. Device and threads may change."""
+    import torch
+
+    from sigmarl.compose import compose_config
+    from sigmarl.training.loop import resolved_settings, train
+    from sigmarl.training.ppo_loss import resolve_precision
+
+    overrides = ["ppo=smoke", "ppo.iterations=2", "ppo.precision=auto", "tracking.enabled=false",
+                 f"run_dir={tmp_path}/run"]
+    cfg = compose_config([*overrides, "ppo.stop_after=1"])
+    assert not train(cfg).finished
+    path = tmp_path / "run" / RESUME_FILE
+    state = torch.load(path, weights_only=False)
+    here = resolve_precision(cfg)
+    assert state["resolved"] == resolved_settings(cfg) == {"precision": here, "device": "cpu", "threads": 1}
+    state["resolved"]["precision"] = {"fp32": "bf16", "bf16": "fp32"}[here]  # as another machine ran it
+    torch.save(state, path)
+    with pytest.raises(SigmarlError, match=f"it trained in {state['resolved']['precision']} and this machine "
+                                           f"resolves ppo.precision to {here}"):
+        train(compose_config([*overrides, "resume=true"]))
+    state["resolved"] = {"precision": here, "device": "cpu", "threads": 3}  # other threads: fine
+    torch.save(state, path)
+    assert train(compose_config([*overrides, "resume=true"])).finished

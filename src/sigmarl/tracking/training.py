@@ -117,6 +117,10 @@ class Tracker:
                 self._warned = True
             return None
 
+    def set_tags(self, tags: Mapping[str, str]) -> None:
+        for key, value in tags.items():
+            self._guard("set_tag", key, value)
+
     def log_params(self, params: Mapping[str, str]) -> None:
         from mlflow.entities import Param
 

@@ -118,7 +118,32 @@ def _resume_point(cfg: Config, run_dir: Path, device: torch.device) -> dict[str,
         old, new = flatten(state["config"]), flatten(as_dict(cfg))
         diffs = ", ".join(f"{k}: {old.get(k, '(default)')} -> {new.get(k)}" for k in changed[:5])
         raise SigmarlError(f"cannot resume {path} with a different config ({diffs})")
+    _compare_resolved(state.get("resolved"), resolved_settings(cfg), path)
     return state
+
+
+def resolved_settings(cfg: Config) -> dict[str, Any]:
+    """What this machine makes of the settings that depend on it: the precision `auto` resolves
+    to, the device and the threads. Recorded in every checkpoint and the MLflow run."""
+    return {"precision": resolve_precision(cfg), "device": str(cfg.device), "threads": int(cfg.threads)}
+
+
+def _compare_resolved(saved: dict[str, Any] | None, now: dict[str, Any], path: Path) -> None:
+    """A resume must compute as the run did: the same resolved precision (a run resumed with
+    `auto` on a CPU without native bf16 would silently switch to fp32). Device and threads may
+    change (the weights are the same), and are only noted. Checkpoints from before this record
+    trained in the precision their config names (`auto` did not exist without it)."""
+    if saved is None:
+        return
+    if saved.get("precision") != now["precision"]:
+        raise SigmarlError(
+            f"cannot resume {path}: it trained in {saved.get('precision')} and this machine resolves "
+            f"ppo.precision to {now['precision']} (bf16 needs a CPU with avx512_bf16 or amx_bf16, or a "
+            "GPU with bf16); resume where it ran, or with ppo.precision set to what it ran in")
+    moved = [f"{k} {saved.get(k)} -> {now[k]}" for k in ("device", "threads") if saved.get(k) != now[k]]
+    if moved:
+        print(f"{path}: resuming with {', '.join(moved)} (same weights; the numbers may differ in the "
+              "last bits)", file=sys.stderr)
 
 
 def _env_dims(env: Any) -> dict[str, Any]:
@@ -179,6 +204,7 @@ def train(cfg: Config) -> TrainResult:
 
 
 def _train(cfg: Config, run_dir: Path) -> TrainResult:
+    resolved = resolved_settings(cfg)
     torch.set_num_threads(cfg.threads)
     device = _device(cfg.device)
     state = _resume_point(cfg, run_dir, device)
@@ -189,6 +215,7 @@ def _train(cfg: Config, run_dir: Path) -> TrainResult:
     start = state["iteration"] if state else 0
     best = state.get("best_reward") if state else None
     tracker = _open_tracker(cfg, run_dir, state)  # the store is checked before any work
+    tracker.set_tags({f"resolved.{k}": str(v) for k, v in resolved.items()})  # what actually ran
     run_id = tracker.run_id if tracker.enabled else (state or {}).get("mlflow_run_id")
     try:
         parts = build(cfg, device)
@@ -212,6 +239,7 @@ def _train(cfg: Config, run_dir: Path) -> TrainResult:
             "mlflow_run_id": run_id,
             "config": as_dict(cfg),
             "dims": parts.dims,
+            "resolved": resolved,
         }
 
     ppo = cfg.ppo
