@@ -227,8 +227,10 @@ def _slug(key: str, value: str) -> str:
     return f"{leaf}-" + (re.sub(r"[^A-Za-z0-9.]+", "-", value).strip("-") or "x")
 
 
-def plan_sweep(user: Sequence[str], cores: int | None = None) -> SweepPlan:
-    """Every job of `sigmarl sweep <user overrides>`, composed and checked; nothing is written."""
+def plan_sweep(user: Sequence[str], cores: int | None = None,
+               seeds_by_label: dict[str, list[int]] | None = None) -> SweepPlan:
+    """Every job of `sigmarl sweep <user overrides>`, composed and checked; nothing is written.
+    `seeds_by_label` gives each variant its own seeds (`seeds=auto`'s rounds)."""
     from sigmarl.compose import compose_config
     from sigmarl.identity import check_label
 
@@ -298,7 +300,7 @@ def plan_sweep(user: Sequence[str], cores: int | None = None) -> SweepPlan:
             name = "_".join([label, *(_slug(key, v) for (key, _), v in zip(sweeps, combo, strict=True))])
             name = check_label(name if len(name) <= 64 else
                                f"{label}_{hashlib.sha1(name.encode()).hexdigest()[:8]}")
-            for seed in seed_list:
+            for seed in (seeds_by_label or {}).get(name, seed_list):
                 overrides = [*fixed, *variant, *extra, f"model={name}", f"seed={seed}"]
                 job = _checked_job(name, seed, overrides, [*variant, *extra], compose_config)
                 if job.run_dir in owners:
@@ -375,7 +377,18 @@ def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
 
 
 def run_sweep(user_overrides: Sequence[str]) -> int:
-    """Plan, then run the multirun in this process (Hydra's entry point), then summarise."""
+    """Plan, then run the multirun in this process (Hydra's entry point), then summarise;
+    with `seeds=auto`, in rounds (`sigmarl.adaptive`)."""
+    rest = [o for o in user_overrides if o.replace(" ", "") != "seeds=auto"]
+    if len(rest) < len(user_overrides):
+        from sigmarl.adaptive import run_auto
+
+        return run_auto(rest)
+    return launch(plan_sweep(user_overrides))
+
+
+def launch(plan: SweepPlan) -> int:
+    """Run a plan's jobs as Hydra's multirun in this process, then summarise them."""
     import hydra
 
     from sigmarl.config import register_configs
@@ -384,7 +397,6 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
     # conf/hydra/launcher/ray.yaml takes the Ray plugin's config name on purpose (a ready config
     # behind `hydra/launcher=ray`); Hydra warns that it validates it against the plugin's schema.
     warnings.filterwarnings("ignore", message=r"(?s).*validated against ConfigStore schema")
-    plan = plan_sweep(user_overrides)
     _prepare_store(plan)
     overrides = multirun_overrides(plan, write_plan(plan))
     register_configs()

@@ -1,0 +1,111 @@
+"""`sigmarl sweep seeds=auto`: seeds added where they decide something.
+
+The sweep runs in rounds. The first trains the study's own seeds (`study.seeds`, at least
+two) for every variant. After each round every comparison (variant against the baseline, per
+scenario and decided metric) is decided again under a group-sequential design that keeps the
+error of the repeated looks at the study's level (`sigmarl.report.sequential`), and each
+variant with an undecided comparison gets one more seed (the baseline too, when it needs
+one), up to `study.max_seeds`. It stops when every comparison is decided or the cap is reached.
+
+Every look is recorded, whole or not at all, in `<runs_root>/seeds_auto.json`: the design,
+the seeds each variant has, the verdicts that are final, and why each seed was added. A sweep
+killed at any instant and started again goes on from that record and from the run folders
+(a round's seeds that finished are not trained again), and never repeats a look.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from sigmarl.errors import SigmarlError
+from sigmarl.run import ROWS_FILE, write_atomic
+
+RECORD = "seeds_auto.json"
+
+
+def run_auto(user: Sequence[str]) -> int:
+    from sigmarl.report.sequential import key, next_round
+    from sigmarl.report.verdicts import design_of
+    from sigmarl.sweep import launch, plan_sweep
+
+    plan = plan_sweep(user)
+    study = plan.study
+    labels = plan.labels
+    n_start = len({j.seed for j in plan.jobs})
+    if n_start < 2:
+        raise SigmarlError("seeds=auto starts from the study's seeds and needs at least two: give "
+                           "study.seeds=[0,1,2] (the seeds of its first round)")
+    if study.baseline not in labels:
+        raise SigmarlError(f"seeds=auto compares with the baseline {study.baseline}, which is not among "
+                           f"the variants swept ({', '.join(labels)})")
+    design = design_of(study, labels)
+    path = Path(plan.config.runs_root) / RECORD
+    identity = {"study": study.name, "variants": labels, "baseline": design.baseline,
+                "metrics": list(design.metrics), "margins": design.margins, "alpha": design.alpha,
+                "n_start": n_start, "max_seeds": design.max_seeds}
+    record = _load(path, identity) or {**identity, "seeds": {j.label: sorted({x.seed for x in plan.jobs
+                                                                              if x.label == j.label})
+                                                            for j in plan.jobs},
+                                       "previous": {}, "looks": [], "done": False}
+    while True:
+        round_plan = plan_sweep(user, seeds_by_label=record["seeds"])
+        if record["done"]:
+            print(f"seeds=auto: finished earlier (see {path}); {_summary(record)}")
+            return 0
+        rc = launch(round_plan)
+        if rc != 0:
+            print(f"seeds=auto: a job of this round did not finish; run the same command again to go on "
+                  f"({path} holds the rounds so far)")
+            return rc
+        rows = _rows(round_plan)
+        look = next_round(rows, design, n_start, record["previous"])
+        decided = look.verdicts[look.verdicts["verdict"] != "undecided"]
+        for _, r in decided.iterrows():
+            record["previous"][key(r["scenario"], r["metric"], r["variant"])] = r["verdict"]
+        record["looks"].append({
+            "seeds": {label: len(s) for label, s in record["seeds"].items()},
+            "verdicts": {key(r.scenario, r.metric, r.variant): r.verdict for r in look.verdicts.itertuples()},
+            "reasons": look.reasons,
+        })
+        for label, k in look.add.items():
+            have = record["seeds"].setdefault(label, [])
+            have += [max(have, default=-1) + 1 + i for i in range(k)]
+        record["done"] = look.done
+        write_atomic(path, json.dumps(record, indent=1, sort_keys=True) + "\n")
+        print("seeds=auto, look {}: {}".format(len(record["looks"]), "; ".join(look.reasons) or "nothing to add"))
+        if look.done:
+            print(f"seeds=auto: done; {_summary(record)}; the record is {path}")
+            return 0
+
+
+def _load(path: Path, identity: dict) -> dict | None:
+    if not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise SigmarlError(f"{path} is unreadable ({e}); move it away to start seeds=auto afresh") from e
+    if {k: record.get(k) for k in identity} != json.loads(json.dumps(identity)):
+        raise SigmarlError(f"{path} records seeds=auto under another design (study, variants, metrics, "
+                           "margins, seeds or cap); move it away, or sweep with the same settings")
+    return record
+
+
+def _rows(plan) -> pd.DataFrame:
+    """The evaluation rows of the plan's run folders, checked as `report --from` checks them."""
+    from sigmarl.report.folder import RunFolder, _rows_of
+
+    frames = [_rows_of(RunFolder(j.label, j.seed, Path(j.run_dir))) for j in plan.jobs
+              if (Path(j.run_dir) / ROWS_FILE).is_file()]
+    return pd.concat(frames, ignore_index=True)
+
+
+def _summary(record: dict) -> str:
+    last = record["looks"][-1]["verdicts"] if record["looks"] else {}
+    counts = pd.Series(list(last.values()), dtype=object).value_counts().to_dict() if last else {}
+    seeds = ", ".join(f"{label} {len(s)}" for label, s in record["seeds"].items())
+    return f"verdicts {counts or 'none yet'}; seeds {seeds}"
