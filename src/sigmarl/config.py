@@ -153,6 +153,9 @@ class StudyConfig:
     # equivalence margins in the table's units (percentage points, cm, m/s)
     margins: dict[str, float] = field(default_factory=lambda: {"CR_total": 0.1, "CD": 0.1, "AS": 0.01})
     max_seeds: int = 10  # seeds=auto adds seeds up to this many per variant
+    # a folder of trained runs (<label>/seed<k>/) that the study evaluates instead of training
+    # (the same label, seed and training config; e.g. results/paper-budget)
+    checkpoints_from: str = ""
     # set by `sigmarl sweep` for its jobs: the plan file and this job's key in it
     job: str = ""
     plan: str = ""

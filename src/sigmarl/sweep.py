@@ -49,7 +49,7 @@ from sigmarl.resources import (
     sweep_folder_override,
     sweep_owner_override,
 )
-from sigmarl.run import CONFIG_FILE, DONE_FILE, FAILED_FILE, Run, write_atomic
+from sigmarl.run import CONFIG_FILE, DONE_FILE, FAILED_FILE, ROWS_FILE, Run, write_atomic
 
 PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
 
@@ -112,7 +112,7 @@ def run_job(cfg: DictConfig | Config) -> str:
 
 
 def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
-    from sigmarl.evaluation.protocol import ROWS_FILE, checkpoint_name, evaluate_and_log
+    from sigmarl.evaluation.protocol import checkpoint_name, evaluate_and_log
     from sigmarl.tracking import connect, experiment_id, records
     from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import train
@@ -120,6 +120,8 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
     (run_dir / FAILED_FILE).unlink(missing_ok=True)
     try:
         cfg = replace(cfg, resume=(run_dir / ckpt.RESUME_FILE).exists(), threads=job_threads(cfg.threads))
+        if cfg.study.checkpoints_from:  # a study that evaluates trained runs, not trains them
+            return _evaluate_trained(cfg, run_dir)
         result = train(cfg)
         if not result.finished:
             return "interrupted"
@@ -151,6 +153,30 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
             pass
         print(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", file=sys.stderr)
         return "failed"
+
+
+def _evaluate_trained(cfg: Config, run_dir: Path) -> str:
+    """Evaluate the run of the same label, seed and training config under
+    `study.checkpoints_from` into this job's own run folder (its config.yaml, rows and marks),
+    leaving the trained run as it is."""
+    import torch
+
+    from sigmarl.evaluation.protocol import checkpoint_name, evaluate_and_log
+
+    source = Path(cfg.study.checkpoints_from) / cfg.model / f"seed{cfg.seed}"
+    trained = _earlier_config(source)
+    if trained is None or not (source / checkpoint_name(cfg.eval.checkpoint)).is_file():
+        raise SigmarlError(f"{source} holds no trained run to evaluate (study.checkpoints_from)")
+    if trained.fingerprint != cfg.fingerprint:
+        from sigmarl.identity import differences
+
+        raise SigmarlError(f"{source} was trained with another config ({differences(trained, cfg)})")
+    torch.set_num_threads(cfg.threads)
+    write_atomic(run_dir / CONFIG_FILE, (source / CONFIG_FILE).read_text())
+    _, eval_run = evaluate_and_log(source / checkpoint_name(cfg.eval.checkpoint), cfg, None, progress=False,
+                                   rows_file=run_dir / ROWS_FILE)
+    write_atomic(run_dir / DONE_FILE, f"{eval_run or ''}\n")
+    return "done"
 
 
 def _job_config(cfg: DictConfig | Config) -> Config:
