@@ -209,7 +209,7 @@ def test_figures(tmp_path):
     )  # fmt: skip
     rows = hand_rows(models=MODELS[:2])
     report = build_report(rows[rows.scenario.isin(SCENARIOS[:2])], out_dir=tmp_path, curves=curves)
-    for key in ("distributions", "training_curves", "performance_profiles", "training_band"):
+    for key in ("distributions", "training_curves", "performance_profiles", "training_band", "heatmap"):
         assert report.paths[key].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -226,7 +226,7 @@ def test_paper_numbers_only_beside_the_papers_maps(tmp_path):
     assert list(groups) == [*SCENARIOS, "Proc-Roundabout"]
     assert all("(" in cell for row in groups["Roundabout"] for cell in row[2:])
     assert not any("(" in cell for row in groups["Proc-Roundabout"] for cell in row[2:])
-    assert "Proc-Roundabout: not in the paper (procedural maps), no paper numbers." in report.notes
+    assert "Proc-Roundabout: not in the paper's Table I, no paper numbers." in report.notes
     csv = pd.read_csv(report.paths["csv"])
     assert set(csv[csv.source == "paper"].scenario) == set(SCENARIOS)
     tex = report.paths["latex"].read_text()

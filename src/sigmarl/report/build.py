@@ -88,7 +88,7 @@ def _notes(
         notes.append("In parentheses: the paper's Table I (CD converted to real cm).")
         others = [s for s in dict.fromkeys(summary["scenario"]) if s not in paper_scenarios]
         if others:
-            notes.append(f"{', '.join(others)}: not in the paper (procedural maps), no paper numbers.")
+            notes.append(f"{', '.join(others)}: not in the paper's Table I, no paper numbers.")
         if not trim:
             notes.append(
                 "The paper dropped the best and worst simulation from its collision rates; "
@@ -195,6 +195,7 @@ def build_report(
         # matplotlib is imported only when drawing: table-only reports stay quick to start
         from sigmarl.report.figures import (
             plot_distributions,
+            plot_heatmap,
             plot_performance_profiles,
             plot_training_band,
             plot_training_curves,
@@ -210,6 +211,8 @@ def build_report(
                 paper=paper_curves() if compare_paper else None,
             )
             paths["training_band"] = plot_training_band(curves, out_dir / "training_band.png", models)
+        if len(scenarios) > 1 and len(models) > 1:
+            paths["heatmap"] = plot_heatmap(summary, models, scenarios, out_dir / "heatmap.png")
         paths["performance_profiles"] = plot_performance_profiles(
             rows[rows["model"].isin(models)], models, scenarios, out_dir / "performance_profiles.png"
         )

@@ -175,3 +175,36 @@ def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str] | Non
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return path
+
+
+def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str], path: Path,
+                 metric: str = "CR_total") -> Path:
+    """A models x scenarios matrix of one metric's estimates (the table's cells), each cell
+    annotated with its estimate and 95 % interval; colour on a log scale, so that 0.05 % and
+    5 % both show."""
+    from matplotlib.colors import LogNorm
+
+    cells = summary[summary["metric"] == metric].set_index(["model", "scenario"])
+    mean = np.array([[cells["mean"].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
+    lo = np.array([[cells["ci_low"].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
+    hi = np.array([[cells["ci_high"].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
+    positive = mean[np.isfinite(mean) & (mean > 0)]
+    floor = max(float(positive.min()) if positive.size else 0.01, 0.01)
+    top = max(float(np.nanmax(mean)) if np.isfinite(mean).any() else 1.0, floor * 10)
+    fig = Figure(figsize=(1.25 * len(scenarios) + 2.0, 0.75 * len(models) + 1.8))
+    ax = fig.add_subplot()
+    image = ax.imshow(np.clip(mean, floor, None), cmap="magma_r", norm=LogNorm(floor, top), aspect="auto")
+    for i in range(len(models)):
+        for j in range(len(scenarios)):
+            if np.isfinite(mean[i, j]):
+                dark = np.log(max(mean[i, j], floor) / floor) > 0.6 * np.log(top / floor)
+                ax.text(j, i, f"{mean[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]", ha="center", va="center",
+                        fontsize=6.5, color="white" if dark else "black")
+    ax.set_xticks(range(len(scenarios)), scenarios, rotation=40, ha="right", fontsize=8)
+    ax.set_yticks(range(len(models)), models, fontsize=9)
+    unit = summary.loc[summary["metric"] == metric, "unit"].iloc[0] if (summary["metric"] == metric).any() else ""
+    fig.colorbar(image, ax=ax, label=f"{metric} ({'%' if unit == 'percent' else unit}), log scale")
+    ax.set_title(f"{metric}: mean over seeds [95% interval over seeds and simulations]", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    return path
