@@ -71,3 +71,15 @@ def enter_sweep_folder() -> None:
     start elsewhere). Needs that folder on a shared filesystem."""
     if folder := os.environ.get(SWEEP_DIR):
         os.chdir(folder)
+
+
+def use_threads(threads: int) -> None:
+    """torch's CPU threads for this process: every command that computes sets them here from
+    its composed config (`threads`), right before its work (torch is imported only then)."""
+    if threads < 1:
+        from sigmarl.errors import SigmarlError
+
+        raise SigmarlError(f"threads must be positive, got {threads}")
+    import torch
+
+    torch.set_num_threads(threads)

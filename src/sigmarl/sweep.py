@@ -28,7 +28,7 @@ from omegaconf import DictConfig
 from sigmarl.ablation import MODELS, check_eval
 from sigmarl.config import Config, as_config
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
-from sigmarl.resources import enter_sweep_folder, job_threads, sweep_folder_override
+from sigmarl.resources import enter_sweep_folder, job_threads, sweep_folder_override, use_threads
 
 FAILED_FILE = "failed.txt"
 DONE_FILE = "evaluated.txt"
@@ -59,6 +59,7 @@ def run_job(cfg: DictConfig | Config) -> str:
     (run_dir / FAILED_FILE).unlink(missing_ok=True)
     try:
         cfg = replace(cfg, resume=(run_dir / ckpt.RESUME_FILE).exists(), threads=job_threads(cfg.threads))
+        use_threads(cfg.threads)  # training and this job's evaluation
         result = train(cfg)
         if not result.finished:
             return "interrupted"
@@ -175,6 +176,13 @@ def _jobs(overrides: Sequence[str]) -> list[list[str]]:
             for combo in itertools.product(*(values for _, values in sweeps))]
 
 
+def job_overrides(user_overrides: Sequence[str]) -> tuple[list[str], list[list[str]]]:
+    """The overrides every job shares (Hydra's launcher settings included) and each job's own."""
+    overrides = sweep_overrides(user_overrides)
+    return [o for o in overrides if o not in {o.input_line for o in _parse(overrides) if o.is_sweep_override()
+                                              and not _is_hydra(o)}], _jobs(overrides)
+
+
 def run_sweep(user_overrides: Sequence[str]) -> int:
     """Run the multirun in this process (Hydra's entry point), then summarise the jobs."""
     import hydra
@@ -186,6 +194,9 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
     # behind `hydra/launcher=ray`); Hydra warns that it validates it against the plugin's schema.
     warnings.filterwarnings("ignore", message=r"(?s).*validated against ConfigStore schema")
     overrides = sweep_overrides(user_overrides)
+    if all_finished(overrides):  # answered from the run folders: no launcher, no store
+        print("every job of this sweep is already trained and evaluated")
+        return summarise(overrides)
     register_configs()
     _prepare_store(overrides)
     argv = sys.argv
@@ -196,6 +207,43 @@ def run_sweep(user_overrides: Sequence[str]) -> int:
     finally:
         sys.argv = argv
     return summarise(overrides)
+
+
+# set per invocation (the launcher's grant, resume, an interruption): not part of what ran
+PER_INVOCATION = ("threads", "resume", "ppo.stop_after")
+
+
+def all_finished(overrides: Sequence[str]) -> bool:
+    """Whether every job's run folder holds a finished job of this very config: `evaluated.txt`,
+    no `failed.txt`, the folder's config.yaml equal to the job's (evaluation settings aside) and
+    its rows measured under the job's evaluation protocol."""
+    from sigmarl.compose import compose_config
+
+    fixed = _fixed(overrides)
+    return all(_finished(compose_config([*fixed, *job])) for job in _jobs(overrides))
+
+
+def _finished(cfg: Config) -> bool:
+    import json
+
+    import yaml
+
+    from sigmarl.ablation import ROWS_META
+    from sigmarl.config import as_dict
+    from sigmarl.tracking.meta import flatten
+    from sigmarl.tracking.records import eval_key
+
+    run_dir = Path(cfg.run_dir)
+    if not (run_dir / DONE_FILE).is_file() or (run_dir / FAILED_FILE).exists():
+        return False
+    try:
+        saved = flatten(yaml.safe_load((run_dir / "config.yaml").read_text(encoding="utf-8")))
+        evaluated = json.loads((run_dir / ROWS_META).read_text(encoding="utf-8"))
+    except (OSError, ValueError, AttributeError):
+        return False
+    same = all(saved.get(key, object()) == value for key, value in flatten(as_dict(cfg)).items()
+               if key not in PER_INVOCATION and not key.startswith("eval."))
+    return same and evaluated.get("eval_key") == eval_key(cfg.eval)
 
 
 def _prepare_store(overrides: Sequence[str]) -> None:

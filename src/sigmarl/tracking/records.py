@@ -14,8 +14,7 @@ import tempfile
 import time
 from collections.abc import Iterable
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from sigmarl import crash
 from sigmarl.ablation import METRIC_COLUMNS, SCENARIOS, TIMINGS
@@ -23,6 +22,9 @@ from sigmarl.config import EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError, was_interrupted
 from sigmarl.tracking.store import experiment_id
+
+if TYPE_CHECKING:  # pandas is imported where rows are read: a sweep's quick checks need only eval_key
+    import pandas as pd
 
 ROWS_ARTIFACT = "evaluation_rows.csv"
 
@@ -98,6 +100,8 @@ def _end(client, rid: str, error: BaseException) -> None:
 
 def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
     """All per-simulation rows of the experiment's finished evaluation runs."""
+    import pandas as pd
+
     exp_id = experiment_id(client, experiment)
     if exp_id is None:
         raise SigmarlError(f"no MLflow experiment named {experiment!r} (set tracking.experiment=...)")
@@ -132,6 +136,8 @@ def _last_per_step(client, run_id: str, metric: str) -> dict[int, float]:
 def load_training_curves(client, experiment: str, metric: str = "episode_reward_mean") -> pd.DataFrame:
     """(model, seed, iteration, reward, seconds) for the experiment's training runs; seconds:
     the iteration's compute time (NaN where the run logged no timings)."""
+    import pandas as pd
+
     columns = ["model", "seed", "iteration", "reward", "seconds"]
     exp_id = experiment_id(client, experiment)
     if exp_id is None:
