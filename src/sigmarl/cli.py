@@ -207,7 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
     train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow)")
     train.add_argument(
         "overrides", nargs="*", default=[],
-        help="Hydra overrides, e.g. obs=no_ego_view seed=3 ppo=smoke resume=true",
+        help="Hydra overrides, e.g. obs=no_ego_view seed=3 resume=true; ppo=smoke is a seconds-long try, "
+             "kept apart in experiment sigmarl-smoke (runs/sigmarl-smoke/...)",
     )
     train.set_defaults(func=cmd_train)
     ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios")

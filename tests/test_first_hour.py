@@ -1,0 +1,172 @@
+"""What a new user meets first: answers without seconds of imports, Hydra's conventions
+(`--cfg`, `--info`, `--version`, completion, "did you mean"), `threads` in every command, and
+a smoke budget kept out of the paper study's folders."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from importlib import metadata
+from pathlib import Path
+
+import pytest
+import yaml
+
+from sigmarl.cli import build_parser, main
+from sigmarl.completion import bash_script
+from sigmarl.compose import compose_config
+
+HEAVY = ("torch", "torchrl", "vmas", "mlflow", "pandas", "matplotlib")
+
+
+def _cli_in_fresh_process(args: list[str], cwd: Path) -> tuple[int, list[str], str]:
+    """Run the CLI in a new interpreter; its exit code, the heavy modules it imported, stderr."""
+    code = (f"import sys, json\nfrom sigmarl.cli import main\nrc = main({args!r})\n"
+            f"print(json.dumps([rc, [m for m in {HEAVY!r} if m in sys.modules]]))")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=cwd, capture_output=True, text=True,
+                          env=dict(os.environ), timeout=300)
+    rc, heavy = json.loads(proc.stdout.strip().splitlines()[-1])
+    return rc, heavy, proc.stderr
+
+
+@pytest.mark.parametrize("args, message", [
+    (["train", "ppo.epoch=3"], "did you mean ppo.epochs?"),
+    (["evaluate", "nonexistent.pt"], "checkpoint not found: nonexistent.pt"),
+    (["report"], "nothing to report: no MLflow store"),
+])
+def test_answers_that_need_no_torch_import_none_and_create_no_store(tmp_path, args, message):
+    rc, heavy, err = _cli_in_fresh_process(args, tmp_path)
+    assert rc == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    assert heavy == []
+    assert list(tmp_path.iterdir()) == []  # no mlflow.db, no run folder
+
+
+@pytest.mark.parametrize("override, hint", [
+    ("ppo.epoch=3", "did you mean ppo.epochs?"),
+    ("+ppo.epoch=3", "did you mean ppo.epochs?"),
+    ("obs.ego_veiw=false", "did you mean obs.ego_view?"),
+    ("obs=ful", "did you mean obs=full?"),
+    ("ppo=smok", "did you mean ppo=smoke?"),
+    ("hydra/launcher=jobli", "did you mean hydra/launcher=joblib?"),
+])
+def test_a_typo_gets_a_suggestion_on_one_line(capsys, override, hint):
+    assert main(["train", override]) == 2
+    err = capsys.readouterr().err
+    assert hint in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_group_choices_leave_out_the_schema_entries(capsys):
+    assert main(["train", "obs=foo"]) == 2
+    err = capsys.readouterr().err
+    assert "base_obs" not in err
+    assert "options: full, no_distance_to_agents" in err
+
+
+def test_cfg_job_prints_the_composed_config(capsys):
+    assert main(["train", "--cfg", "job", "ppo.epochs=7", "obs=no_vertices"]) == 0
+    cfg = yaml.safe_load(capsys.readouterr().out)
+    assert cfg["ppo"]["epochs"] == 7 and cfg["model"] == "M2"
+    assert cfg["run_dir"] == "runs/sigmarl-ablation/M2/seed0"
+
+
+def test_cfg_job_of_a_sweep_prints_each_job(capsys):
+    assert main(["sweep", "--cfg", "job", "models=[M0,M4]", "seeds=[0,1]"]) == 0
+    out = capsys.readouterr().out
+    docs = [yaml.safe_load(part.split("\n", 1)[1]) for part in out.split("# job: ")[1:]]
+    assert sorted((d["model"], d["seed"]) for d in docs) == [("M0", 0), ("M0", 1), ("M4", 0), ("M4", 1)]
+
+
+def test_cfg_hydra_shows_the_sweeps_launcher(capsys):
+    assert main(["sweep", "--cfg", "hydra", "models=[M0]", "hydra.launcher.n_jobs=1"]) == 0
+    hydra = yaml.safe_load(capsys.readouterr().out)["hydra"]
+    assert hydra["launcher"]["n_jobs"] == 1 and "JoblibLauncher" in hydra["launcher"]["_target_"]
+
+
+def test_version_and_info(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.strip() == f"sigmarl {metadata.version('sigmarl')}"
+    with pytest.raises(SystemExit):
+        main(["--info"])
+    out = capsys.readouterr().out
+    assert "ppo             paper, smoke" in out and "base_" not in out
+
+
+def _complete(line: str) -> list[str]:
+    """What bash completes at the end of `line` with the script `--completion bash` prints."""
+    script = bash_script(build_parser())
+    words = line.split(" ")
+    driver = (f"{script}\nCOMP_LINE={line!r}; COMP_POINT={len(line)}; COMP_WORDS=({' '.join(map(repr, words))}); "
+              f"COMP_CWORD={len(words) - 1}; _sigmarl; printf '%s\\n' \"${{COMPREPLY[@]}}\"")
+    out = subprocess.run(["bash", "-c", driver], capture_output=True, text=True, check=True).stdout
+    return out.split()
+
+
+def test_bash_completes_commands_groups_and_keys():
+    assert _complete("sigmarl sw") == ["sweep"]
+    # bash splits `obs=no_e` at `=`: the reply completes the part after it
+    assert _complete("sigmarl train obs=no_e") == ["no_ego_view"]
+    assert _complete("sigmarl train ppo.epo") == ["ppo.epochs="]
+    assert _complete("sigmarl sweep see") == ["seed=", "seeds="]
+    assert "base_obs" not in _complete("sigmarl train obs=")
+
+
+def test_smoke_budget_has_its_own_experiment_and_folders():
+    cfg = compose_config(["ppo=smoke"])
+    assert cfg.tracking.experiment == "sigmarl-smoke" and cfg.run_dir == "runs/sigmarl-smoke/M0/seed0"
+    assert cfg.ppo.iterations == 3 and cfg.ppo.lr == compose_config([]).ppo.lr  # the rest stays the paper's
+    assert compose_config(["ppo=smoke", "tracking.experiment=mine"]).run_dir == "runs/mine/M0/seed0"
+    assert compose_config(["study=quick"]).tracking.experiment == "sigmarl-quick"
+    assert compose_config([]).tracking.experiment == "sigmarl-ablation"
+
+
+@pytest.fixture
+def torch_threads():
+    import torch
+
+    before = torch.get_num_threads()
+    yield torch
+    torch.set_num_threads(before)
+
+
+@pytest.mark.slow
+def test_evaluate_runs_on_the_threads_it_is_given(tmp_path, monkeypatch, torch_threads):
+    from sigmarl.evaluation import protocol
+
+    run = tmp_path / "run"
+    assert main(["train", "ppo=smoke", "ppo.iterations=1", "tracking.enabled=false", "threads=2",
+                 f"run_dir={run}"]) == 0
+    assert torch_threads.get_num_threads() == 2
+    seen = []
+    evaluate_policy = protocol.evaluate_policy
+
+    def watched(*args, **kwargs):  # the real evaluation, noting the threads it ran on
+        seen.append(torch_threads.get_num_threads())
+        return evaluate_policy(*args, **kwargs)
+
+    monkeypatch.setattr(protocol, "evaluate_policy", watched)
+    assert main(["evaluate", str(run / "final.pt"), "--scenario", "Intersection", "eval.n_sims=1",
+                 "eval.steps=3", "tracking.enabled=false", "threads=1"]) == 0
+    assert seen == [1]
+
+
+@pytest.mark.slow
+def test_a_finished_sweep_is_answered_from_its_run_folders(tmp_path, monkeypatch):
+    from sigmarl.sweep import all_finished, sweep_overrides
+
+    monkeypatch.chdir(tmp_path)
+    tiny = ["models=[M0]", "ppo=smoke", "ppo.iterations=1", "eval.n_sims=1", "eval.steps=5",
+            "eval.scenarios=[Intersection]", "hydra/launcher=basic"]
+    assert main(["sweep", *tiny]) == 0
+    store = (tmp_path / "mlflow.db").stat().st_mtime_ns
+    rc, heavy, err = _cli_in_fresh_process(["sweep", *tiny], tmp_path)
+    assert rc == 0, err
+    assert heavy == []  # neither the launcher's jobs nor MLflow were started
+    assert (tmp_path / "mlflow.db").stat().st_mtime_ns == store
+    # another evaluation protocol, or another training setting, is work to do
+    assert not all_finished(sweep_overrides([*tiny, "eval.steps=6"]))
+    assert not all_finished(sweep_overrides([*tiny, "ppo.iterations=2"]))
+    assert all_finished(sweep_overrides([*tiny, "threads=2"]))  # threads change no result
