@@ -170,3 +170,42 @@ def test_a_finished_sweep_is_answered_from_its_run_folders(tmp_path, monkeypatch
     assert not all_finished(sweep_overrides([*tiny, "eval.steps=6"]))
     assert not all_finished(sweep_overrides([*tiny, "ppo.iterations=2"]))
     assert all_finished(sweep_overrides([*tiny, "threads=2"]))  # threads change no result
+
+
+RESULTS = Path(__file__).parent / "data" / "results"
+
+
+def test_evaluation_runs_nest_under_their_training_run_in_the_tables_units(tmp_path):
+    import pandas as pd
+    from mlflow import MlflowClient
+
+    from sigmarl.tracking import connect, experiment_id, records
+
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    client = connect(compose_config([f"tracking.tracking_uri={uri}"]))
+    exp = experiment_id(client, "nest", create=True)
+    training = client.create_run(exp, run_name="M0-seed0", tags={"kind": "training"}).info.run_id
+    rows = pd.read_csv(RESULTS / "M0" / "seed0" / "evaluation_rows.csv")
+    rid = records.log_evaluation(client, exp, rows, {"model": "M0", "seed": "0", "train_run_id": training,
+                                                     "eval_key": "k"}, {})
+    run = MlflowClient(tracking_uri=uri).get_run(rid)
+    assert run.data.tags["mlflow.parentRunId"] == training
+    cpm = rows[rows["scenario"] == "CPM"]
+    assert run.data.metrics["CPM/CR_total_pct"] == pytest.approx(100 * cpm["CR_total"].mean())
+    assert run.data.metrics["CPM/CD_cm"] == pytest.approx(cpm["CD"].mean())
+    assert run.data.metrics["CPM/AS_mps"] == pytest.approx(cpm["AS"].mean())
+    # the report reads the rows back in their own units, as from runs logged before
+    back = records.load_evaluation_rows(client, "nest")
+    assert back["CR_total"].tolist() == pytest.approx(rows["CR_total"].tolist())
+
+
+def test_report_runs_are_named_after_what_they_report(tmp_path, monkeypatch):
+    from mlflow import MlflowClient
+
+    monkeypatch.chdir(tmp_path)
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    assert main(["report", "--from", str(RESULTS), "--no-figures", f"tracking.tracking_uri={uri}",
+                 "tracking.experiment=named"]) == 0
+    client = MlflowClient(tracking_uri=uri)
+    (run,) = client.search_runs([client.get_experiment_by_name("named").experiment_id])
+    assert run.info.run_name == f"report {RESULTS}"

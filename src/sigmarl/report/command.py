@@ -79,7 +79,7 @@ def make_report_from_folder(
                     extra_notes=results.notes, **options)
     if client is not None:
         records.log_report(client, cfg.tracking.experiment, report.composite, report.paths.values(),
-                           {"source": str(root.resolve())})
+                           {"source": str(root.resolve())}, source=str(root))
     return report
 
 

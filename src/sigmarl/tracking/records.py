@@ -27,6 +27,10 @@ if TYPE_CHECKING:  # pandas is imported where rows are read: a sweep's quick che
     import pandas as pd
 
 ROWS_ARTIFACT = "evaluation_rows.csv"
+# An evaluation run's scenario means, in the table's units with the unit in the name (the rows
+# artifact keeps the rows' own units: collision rates as fractions of agent-steps)
+METRIC_NAMES = {"CR_AA": "CR_AA_pct", "CR_AL": "CR_AL_pct", "CR_total": "CR_total_pct", "CD": "CD_cm", "AS": "AS_mps"}
+METRIC_SCALE = {"CR_AA": 100.0, "CR_AL": 100.0, "CR_total": 100.0}
 
 
 def eval_key(eval_cfg: EvalConfig) -> str:
@@ -69,13 +73,14 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
         for status in ("RUNNING", "FAILED", "KILLED"):
             for old in _evaluations(client, exp_id, tags["train_run_id"], tags["eval_key"], status):
                 client.delete_run(old.info.run_id)
+    parent = _parent_tag(client, exp_id, tags.get("train_run_id"))
     run = client.create_run(exp_id, run_name=f"eval-{tags.get('model', 'policy')}-seed{tags.get('seed', '')}",
-                            tags={"kind": "evaluation", **tags})
+                            tags={"kind": "evaluation", **tags, **parent})
     rid = run.info.run_id
     try:
         means = rows.groupby("scenario")[METRIC_COLUMNS].mean()
         now = int(time.time() * 1000)
-        metrics = [Metric(f"{scenario}/{metric}", float(value), now, 0)
+        metrics = [Metric(f"{scenario}/{METRIC_NAMES.get(metric, metric)}", float(value) * METRIC_SCALE.get(metric, 1.0), now, 0)
                    for scenario, row in means.iterrows() for metric, value in row.items()]
         client.log_batch(rid, metrics=metrics, params=[Param(k, v) for k, v in params.items()])
         crash.point("eval:logging")
@@ -88,6 +93,18 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
         _end(client, rid, e)
         raise
     return rid
+
+
+def _parent_tag(client, exp_id: str, train_run_id: str | None) -> dict[str, str]:
+    """MLflow's tag that nests a run under another (its UI shows an evaluation under its
+    training run), where the training run is in the same experiment (the UI nests only there)."""
+    if not train_run_id:
+        return {}
+    try:
+        same = client.get_run(train_run_id).info.experiment_id == exp_id
+    except Exception:  # a training run this store does not hold (evaluated from a copied folder)
+        return {}
+    return {"mlflow.parentRunId": train_run_id} if same else {}
 
 
 def _end(client, rid: str, error: BaseException) -> None:
@@ -186,10 +203,11 @@ def training_checkpoint(client, run_id: str, name: str, download_dir: Path) -> P
 
 
 def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable[Path],
-               tags: dict[str, str]) -> str:
-    """A report run: the table files, figures and composite scores, with what it was built from."""
+               tags: dict[str, str], source: str | None = None) -> str:
+    """A report run: the table files, figures and composite scores, with what it was built from;
+    named after what it reports (`report <experiment>`, or `report <results folder>`)."""
     exp_id = experiment_id(client, experiment, create=True)
-    run = client.create_run(exp_id, run_name="report", tags={"kind": "report", **tags})
+    run = client.create_run(exp_id, run_name=f"report {source or experiment}", tags={"kind": "report", **tags})
     rid = run.info.run_id
     try:
         for _, r in composite.dropna(subset=["CS"]).iterrows():
