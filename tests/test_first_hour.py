@@ -161,6 +161,10 @@ def test_a_finished_sweep_is_answered_from_its_run_folders(tmp_path, monkeypatch
     tiny = ["models=[M0]", "ppo=smoke", "ppo.iterations=1", "eval.n_sims=1", "eval.steps=5",
             "eval.scenarios=[Intersection]", "hydra/launcher=basic"]
     assert main(["sweep", *tiny]) == 0
+    # the job's own log holds its progress, named, in plain lines
+    log = (tmp_path / "multirun" / "sigmarl-smoke" / "M0" / "seed0" / "sweep.log").read_text()
+    assert "M0 seed 0: train 1/1 (100%) reward" in log
+    assert "M0 seed 0: evaluate Intersection 5/5 (100%)" in log
     store = (tmp_path / "mlflow.db").stat().st_mtime_ns
     rc, heavy, err = _cli_in_fresh_process(["sweep", *tiny], tmp_path)
     assert rc == 0, err
@@ -209,3 +213,35 @@ def test_report_runs_are_named_after_what_they_report(tmp_path, monkeypatch):
     client = MlflowClient(tracking_uri=uri)
     (run,) = client.search_runs([client.get_experiment_by_name("named").experiment_id])
     assert run.info.run_name == f"report {RESULTS}"
+
+
+def test_progress_outside_a_terminal_is_plain_lines_with_an_eta(monkeypatch, capsys):
+    from sigmarl import progress
+
+    clock = iter(range(0, 1000, 10))  # each reading of the clock is 10 s after the last
+    monkeypatch.setattr(progress.time, "monotonic", lambda: next(clock))
+    monkeypatch.delenv("SIGMARL_SWEEP_DIR", raising=False)
+    bar = progress.Progress(4, "M3 seed 2", "train", min_interval=0)  # clock 0
+    for k in range(4):
+        bar.update(1, reward=f"{k / 10:.3f}")  # clock 10, 20, 30, 40 at the k-th line
+    bar.close()
+    lines = capsys.readouterr().err.strip().splitlines()
+    # after 1 of 4 in 10 s: 3 more take 30 s; after 3 of 4 in 30 s: 10 s more
+    assert lines == ["M3 seed 2: train 1/4 (25%) reward 0.000 | 10s, ETA 30s",
+                     "M3 seed 2: train 2/4 (50%) reward 0.100 | 20s, ETA 20s",
+                     "M3 seed 2: train 3/4 (75%) reward 0.200 | 30s, ETA 10s",
+                     "M3 seed 2: train 4/4 (100%) reward 0.300 | 40s"]
+
+
+def test_progress_lines_are_spaced_by_the_interval(monkeypatch, capsys):
+    from sigmarl import progress
+
+    clock = iter(range(0, 1000, 4))
+    monkeypatch.setattr(progress.time, "monotonic", lambda: next(clock))
+    monkeypatch.delenv("SIGMARL_SWEEP_DIR", raising=False)
+    bar = progress.Progress(10, "M0 seed 0", "evaluate CPM", min_interval=10)
+    for _ in range(10):
+        bar.update(1)
+    shown = [line.split()[5] for line in capsys.readouterr().err.strip().splitlines()]
+    # the first, then one at least 10 s after the last shown (every third step at 4 s each), the last
+    assert shown == ["1/10", "4/10", "7/10", "10/10"]

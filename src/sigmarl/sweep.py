@@ -11,6 +11,7 @@ already holds a finished one under the same protocol.
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 import os
 import sys
@@ -28,6 +29,7 @@ from omegaconf import DictConfig
 from sigmarl.ablation import MODELS, check_eval
 from sigmarl.config import Config, as_config
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
+from sigmarl.progress import emit
 from sigmarl.resources import enter_sweep_folder, job_threads, sweep_folder_override, use_threads
 
 FAILED_FILE = "failed.txt"
@@ -67,17 +69,16 @@ def run_job(cfg: DictConfig | Config) -> str:
             client = connect(cfg)
             exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
             if done := records.finished_evaluation(client, exp_id, result.run_id, records.eval_key(cfg.eval)):
-                print(f"{run_dir}: already evaluated")
+                emit(f"{run_dir}: already evaluated")
                 (run_dir / DONE_FILE).write_text(f"{done.info.run_id}\n")
                 return "done"
         path = run_dir / checkpoint_name(cfg.eval.checkpoint)
-        _, eval_run = evaluate_and_log(path, cfg, result.run_id, progress=False,
-                                       rows_file=run_dir / ROWS_FILE)
+        _, eval_run = evaluate_and_log(path, cfg, result.run_id, rows_file=run_dir / ROWS_FILE)
         (run_dir / DONE_FILE).write_text(f"{eval_run or ''}\n")
         return "done"
     except BaseException as e:
         if was_interrupted(e):  # Ctrl-C or SIGTERM: interrupted, not failed; a re-run resumes
-            print(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", file=sys.stderr)
+            emit(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", logging.WARNING)
             if isinstance(e, KeyboardInterrupt):
                 raise
             raise Terminated() from e
@@ -89,7 +90,7 @@ def run_job(cfg: DictConfig | Config) -> str:
             (run_dir / FAILED_FILE).write_text(message)
         except OSError:  # an unwritable run folder is itself the error reported
             pass
-        print(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", file=sys.stderr)
+        emit(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", logging.ERROR)
         return "failed"
 
 

@@ -13,13 +13,13 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
-from tqdm.auto import tqdm
 
 from sigmarl.ablation import SCENARIOS
 from sigmarl.compose import scenario_map_config
 from sigmarl.config import Config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
+from sigmarl.progress import Progress
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
@@ -70,7 +70,9 @@ def evaluate_policy(
     dist_sum, speed_sum = torch.zeros_like(aa_steps), torch.zeros_like(aa_steps)
     td = env.reset()
     with set_exploration_type(ExplorationType.DETERMINISTIC):
-        for _ in tqdm(range(steps), desc=f"evaluate {scenario}", disable=not progress, leave=False):
+        bar = Progress(steps, f"{cfg.model} seed {cfg.seed}", f"evaluate {scenario}", enabled=progress)
+        for _ in range(steps):
+            bar.update(1)
             try:
                 td = act(td)
             except RuntimeError as e:  # typically a shape mismatch in the first layer
@@ -91,6 +93,7 @@ def evaluate_policy(
             dist_sum += info["distance_to_center_line"].squeeze(-1).sum(-1)
             speed_sum += info["speed"].squeeze(-1).sum(-1)
             td = env.step_mdp(td)
+    bar.close()
     env.close()
     agent_steps = steps * n_agents
     rows = pd.DataFrame({
