@@ -180,8 +180,8 @@ def _jobs(overrides: Sequence[str]) -> list[list[str]]:
 def job_overrides(user_overrides: Sequence[str]) -> tuple[list[str], list[list[str]]]:
     """The overrides every job shares (Hydra's launcher settings included) and each job's own."""
     overrides = sweep_overrides(user_overrides)
-    return [o for o in overrides if o not in {o.input_line for o in _parse(overrides) if o.is_sweep_override()
-                                              and not _is_hydra(o)}], _jobs(overrides)
+    swept = {o.input_line for o in _parse(overrides) if o.is_sweep_override() and not _is_hydra(o)}
+    return [o for o in overrides if o not in swept], _jobs(overrides)
 
 
 def run_sweep(user_overrides: Sequence[str]) -> int:
