@@ -35,6 +35,7 @@ def _cli_in_fresh_process(args: list[str], cwd: Path) -> tuple[int, list[str], s
     (["train", "ppo.epoch=3"], "did you mean ppo.epochs?"),
     (["evaluate", "nonexistent.pt"], "checkpoint not found: nonexistent.pt"),
     (["report"], "nothing to report: no MLflow store"),
+    (["evaluate", "abc123"], "'abc123' is no checkpoint file or run folder, and there is no MLflow store"),
 ])
 def test_answers_that_need_no_torch_import_none_and_create_no_store(tmp_path, args, message):
     rc, heavy, err = _cli_in_fresh_process(args, tmp_path)

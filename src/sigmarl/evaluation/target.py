@@ -43,6 +43,10 @@ def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = Non
             return path / name
         raise SigmarlError(f"{path} holds no {name} (has the training finished? see eval.checkpoint)")
     from sigmarl.tracking import connect, records
+    from sigmarl.tracking.store import missing_store
 
+    if db := missing_store(cfg):  # nowhere to look the run id up: create no empty store
+        raise SigmarlError(f"{target!r} is no checkpoint file or run folder, and there is no MLflow store "
+                           f"at {db} to look it up as a training run id")
     out = download_dir or Path(tempfile.mkdtemp(prefix="sigmarl-ckpt-"))
     return records.training_checkpoint(connect(cfg, write=False), target, name, out)
