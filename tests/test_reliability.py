@@ -129,7 +129,9 @@ def test_a_half_migrated_empty_store_is_created_again(tmp_path: Path) -> None:
     # each command is a new process (MLflow caches an opened store per process)
     uri = f"sqlite:///{tmp_path}/mlflow.db"
     report = ["report", f"tracking.tracking_uri={uri}", "tracking.experiment=nothing"]
-    connect(compose_config([f"tracking.tracking_uri={uri}"]))  # a new store, as a first run makes it
+    # a new store, as a first run makes it (in its own process: MLflow caches an opened store)
+    subprocess.run([sys.executable, "-c", "from sigmarl.compose import compose_config; from sigmarl.tracking "
+                    f"import connect; connect(compose_config(['tracking.tracking_uri={uri}']))"], check=True)
     assert "no MLflow experiment" in _cli(report, tmp_path).stderr
     _stamp_older_schema(tmp_path / "mlflow.db")
     again = _cli(report, tmp_path)

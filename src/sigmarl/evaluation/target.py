@@ -37,16 +37,18 @@ def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = Non
         return path
     if not path.is_dir() and ("/" in target or target.endswith(".pt")):
         raise SigmarlError(f"checkpoint not found: {target}")
-    name = checkpoint_name(cfg.eval.checkpoint)
     if path.is_dir():
+        name = checkpoint_name(cfg.eval.checkpoint)
         if (path / name).is_file():
             return path / name
         raise SigmarlError(f"{path} holds no {name} (has the training finished? see eval.checkpoint)")
-    from sigmarl.tracking import connect, records
     from sigmarl.tracking.store import missing_store
 
     if db := missing_store(cfg):  # nowhere to look the run id up: create no empty store
         raise SigmarlError(f"{target!r} is no checkpoint file or run folder, and there is no MLflow store "
                            f"at {db} to look it up as a training run id")
+    from sigmarl.tracking import connect, records
+
+    name = checkpoint_name(cfg.eval.checkpoint)
     out = download_dir or Path(tempfile.mkdtemp(prefix="sigmarl-ckpt-"))
     return records.training_checkpoint(connect(cfg, write=False), target, name, out)
