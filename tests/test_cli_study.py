@@ -8,6 +8,7 @@ from sigmarl.cli import main
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
 from sigmarl.sweep import FAILED_FILE, plan_sweep, run_job
+from sigmarl.tracking import connect
 
 
 def test_sweep_defaults_cover_the_six_models_with_one_job_per_core():
@@ -70,9 +71,18 @@ def test_evaluate_checkpoint_whose_observation_does_not_fit(tmp_path, capsys):
 
 
 def test_report_without_runs_exits_2(tmp_path, capsys):
-    rc = main(["report", f"tracking.tracking_uri=sqlite:///{tmp_path}/mlflow.db", "tracking.experiment=empty"])
+    uri = f"tracking.tracking_uri=sqlite:///{tmp_path}/mlflow.db"
+    connect(compose_config([uri]))  # a store without the experiment
+    rc = main(["report", uri, "tracking.experiment=empty"])
     assert rc == 2
     assert "no MLflow experiment named 'empty'" in capsys.readouterr().err
+
+
+def test_report_without_a_store_creates_none(tmp_path, capsys):
+    rc = main(["report", f"tracking.tracking_uri=sqlite:///{tmp_path}/mlflow.db"])
+    assert rc == 2
+    assert f"nothing to report: no MLflow store at {tmp_path}/mlflow.db" in capsys.readouterr().err
+    assert not (tmp_path / "mlflow.db").exists()
 
 
 def test_report_on_unreachable_store_exits_2(tmp_path, capsys):

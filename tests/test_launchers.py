@@ -110,6 +110,8 @@ def ray_cluster(tmp_path):
     import ray as ray_module
 
     ray = shutil.which("ray", path=str(Path(sys.executable).parent))
+    if ray is None:
+        pytest.skip("the ray program is not installed beside this Python (pip install \".[ray]\")")
     env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
     with socket.socket() as sock:  # a free port for the head's GCS
         sock.bind(("127.0.0.1", 0))
@@ -149,8 +151,8 @@ def test_ray_sweep_on_a_local_cluster(tmp_path, monkeypatch, ray_cluster):
 @pytest.fixture
 def slurm_cluster(monkeypatch):
     """A one-node SLURM cluster started by scripts/slurm_local.sh (needs root and slurm-wlm)."""
-    if os.geteuid() != 0 or not shutil.which("slurmctld", path="/usr/sbin:/usr/bin"):
-        pytest.skip("needs root and Debian's slurm-wlm (apt-get install slurm-wlm munge)")
+    if os.geteuid() != 0 or not all(shutil.which(p, path="/usr/sbin:/usr/bin") for p in ("slurmctld", "munged")):
+        pytest.skip("needs root and Debian's slurm-wlm and munge (apt-get install slurm-wlm munge)")
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
     script = Path(__file__).resolve().parents[1] / "scripts" / "slurm_local.sh"
     folder = tempfile.mkdtemp(prefix="slurm", dir="/tmp")

@@ -96,13 +96,18 @@ def trained(tmp_path_factory):
 @pytest.mark.slow
 def test_commands_started_together_on_a_new_store_do_not_race(tmp_path: Path) -> None:
     uri = f"sqlite:///{tmp_path}/store/mlflow.db"
-    report = ["report", "--no-figures", f"tracking.tracking_uri={uri}", "tracking.experiment=nothing"]
+    # a report of a results folder logs a report run: it creates the store it is pointed at
+    # (a report read from MLflow creates none: with no store there is nothing to read)
+    results = Path(__file__).parent / "data" / "results"
     go = time.time() + 3  # the three meet at the new store
-    racers = [forked.start(report, tmp_path, start_at=go) for _ in range(3)]
+    racers = [forked.start(["report", "--from", str(results), "--no-figures", "--out", f"out{k}",
+                            f"tracking.tracking_uri={uri}", "tracking.experiment=nothing"], tmp_path, start_at=go)
+              for k in range(3)]
     for racer in racers:
-        # each finds a healthy, empty store: the report's own message, not a migration error
-        assert racer.wait() == 2, racer.stderr
-        assert "no MLflow experiment named 'nothing'" in racer.stderr, racer.stderr
+        # each finds a healthy store and logs its report run, not a migration error
+        assert racer.wait() == 0, racer.stderr
+    client = MlflowClient(tracking_uri=uri)
+    assert len(client.search_runs([client.get_experiment_by_name("nothing").experiment_id])) == 3
     client = connect(compose_config([f"tracking.tracking_uri={uri}"]))
     assert client.create_experiment("after") is not None
 
@@ -124,6 +129,9 @@ def test_a_half_migrated_empty_store_is_created_again(tmp_path: Path) -> None:
     # each command is a new process (MLflow caches an opened store per process)
     uri = f"sqlite:///{tmp_path}/mlflow.db"
     report = ["report", f"tracking.tracking_uri={uri}", "tracking.experiment=nothing"]
+    # a new store, as a first run makes it (in its own process: MLflow caches an opened store)
+    subprocess.run([sys.executable, "-c", "from sigmarl.compose import compose_config; from sigmarl.tracking "
+                    f"import connect; connect(compose_config(['tracking.tracking_uri={uri}']))"], check=True)
     assert "no MLflow experiment" in _cli(report, tmp_path).stderr
     _stamp_older_schema(tmp_path / "mlflow.db")
     again = _cli(report, tmp_path)

@@ -1,12 +1,15 @@
 """One tracking store for many machines: a real `mlflow server` on localhost, backed by
-PostgreSQL (started here with pg_ctl in a temporary folder; SQLite where PostgreSQL is not
-installed), with a server-side artifact root. A parallel sweep logs to it, `sigmarl report`
-builds its table from it, and two processes logging at once lose nothing."""
+PostgreSQL (started here with pg_ctl in a temporary folder; SQLite where PostgreSQL or a
+Python driver for it is not installed, or where it does not start), with a server-side
+artifact root. A parallel sweep logs to it, `sigmarl report` builds its table from it, and two
+processes logging at once lose nothing."""
 
 from __future__ import annotations
 
 import glob
+import importlib.util
 import os
+import pwd
 import shutil
 import socket
 import subprocess
@@ -36,33 +39,64 @@ def _pg_bin() -> Path | None:
     return Path(found).resolve().parent if found else None
 
 
+def _pg_driver() -> str | None:
+    """The SQLAlchemy driver the server would use for PostgreSQL, if one is importable:
+    `pg_ctl` on PATH says nothing about the Python side (`.[dev]` installs no driver)."""
+    for module, driver in (("psycopg", "psycopg"), ("psycopg2", "psycopg2")):
+        if importlib.util.find_spec(module) is not None:
+            return driver
+    return None
+
+
 def _as_postgres(cmd: list[str]) -> list[str]:
     # PostgreSQL refuses to run as root; Debian's package creates the `postgres` user.
     return ["runuser", "-u", "postgres", "--", *cmd] if os.geteuid() == 0 else cmd
 
 
+def _postgres_usable() -> tuple[Path, str] | None:
+    """PostgreSQL's programs and a driver for them, or None (then the server uses SQLite)."""
+    pg, driver = _pg_bin(), _pg_driver()
+    if pg is None or driver is None or not (pg / "initdb").exists():
+        return None
+    if os.geteuid() == 0:
+        try:
+            pwd.getpwnam("postgres")
+        except KeyError:
+            return None
+    return pg, driver
+
+
 @pytest.fixture(scope="module")
 def backend(tmp_path_factory):
-    """A database URI for the server: a fresh PostgreSQL cluster, or SQLite without one."""
-    pg = _pg_bin()
-    if pg is None:
-        yield f"sqlite:///{tmp_path_factory.mktemp('db')}/mlflow.db"
+    """A database URI for the server: a fresh PostgreSQL cluster where PostgreSQL and a Python
+    driver for it are installed and the cluster starts, else SQLite."""
+    sqlite = f"sqlite:///{tmp_path_factory.mktemp('db')}/mlflow.db"
+    usable = _postgres_usable()
+    if usable is None:
+        yield sqlite
         return
+    pg, driver = usable
     # not under pytest's root-only temp folder: the `postgres` user must reach it
     root = Path(tempfile.mkdtemp(prefix="sigmarl-pg"))
     data = root / "pgdata"
     if os.geteuid() == 0:
         shutil.chown(root, "postgres")
     port = _free_port()
-    subprocess.run(_as_postgres([str(pg / "initdb"), "-D", str(data), "-U", "postgres", "--auth=trust",
-                                 "-E", "UTF8"]), check=True, capture_output=True)
-    subprocess.run(_as_postgres([str(pg / "pg_ctl"), "-D", str(data), "-w", "-l", str(root / "pg.log"),
-                                 "-o", f"-p {port} -k {root} -c listen_addresses=127.0.0.1", "start"]),
-                   check=True, capture_output=True)
+    try:
+        subprocess.run(_as_postgres([str(pg / "initdb"), "-D", str(data), "-U", "postgres", "--auth=trust",
+                                     "-E", "UTF8"]), check=True, capture_output=True)
+        subprocess.run(_as_postgres([str(pg / "pg_ctl"), "-D", str(data), "-w", "-l", str(root / "pg.log"),
+                                     "-o", f"-p {port} -k {root} -c listen_addresses=127.0.0.1", "start"]),
+                       check=True, capture_output=True)
+    except (OSError, subprocess.CalledProcessError) as e:  # installed but not runnable here
+        print(f"PostgreSQL did not start ({e}); the server uses SQLite", file=sys.stderr)
+        shutil.rmtree(root, ignore_errors=True)
+        yield sqlite
+        return
     try:
         subprocess.run([str(pg / "createdb"), "-h", "127.0.0.1", "-p", str(port), "-U", "postgres",
                         "mlflow"], check=True, capture_output=True)
-        yield f"postgresql://postgres@127.0.0.1:{port}/mlflow"
+        yield f"postgresql+{driver}://postgres@127.0.0.1:{port}/mlflow"
     finally:
         subprocess.run(_as_postgres([str(pg / "pg_ctl"), "-D", str(data), "-m", "fast", "stop"]),
                        capture_output=True)
@@ -82,15 +116,14 @@ def server(backend, tmp_path_factory):
         stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True)
     url = f"http://127.0.0.1:{port}"
     try:
-        for _ in range(240):
+        # a loaded machine takes minutes to start MLflow's workers: wait for an answer, not a count
+        deadline, healthy = time.monotonic() + 600, False
+        while not healthy and proc.poll() is None and time.monotonic() < deadline:
             try:
-                if urllib.request.urlopen(f"{url}/health", timeout=2).status == 200:
-                    break
+                healthy = urllib.request.urlopen(f"{url}/health", timeout=2).status == 200
             except OSError:
-                if proc.poll() is not None:
-                    break
                 time.sleep(0.5)
-        assert proc.poll() is None, log.read_text()[-3000:]
+        assert healthy, log.read_text()[-3000:]
         yield url, root / "artifacts", backend
     finally:
         if proc.poll() is None:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from sigmarl.errors import SigmarlError, Terminated, on_signal, was_interrupted
 from sigmarl.paths import add_user_conf_dir
+from sigmarl.resources import use_threads
 
 
 def handle_sigterm() -> None:
@@ -67,9 +68,12 @@ def cmd_maps(args: argparse.Namespace) -> None:
 
 def cmd_train(args: argparse.Namespace) -> None:
     from sigmarl.compose import compose_config
+
+    cfg = compose_config(args.overrides)  # a bad override is answered before torch is imported
+    use_threads(cfg.threads)
     from sigmarl.training import train
 
-    result = train(compose_config(args.overrides))
+    result = train(cfg)
     best = "n/a" if result.best_reward is None else f"{result.best_reward:.2f}"
     state = "finished" if result.finished else "stopped (resume with resume=true)"
     print(f"{state} after {result.iterations} iterations; best mean episode reward {best}; "
@@ -78,12 +82,15 @@ def cmd_train(args: argparse.Namespace) -> None:
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from sigmarl.compose import compose_config
-    from sigmarl.evaluation.protocol import evaluate_and_log, resolve_checkpoint, rows_file_for
+    from sigmarl.evaluation.target import resolve_checkpoint
 
     cfg = compose_config(args.overrides)
     if args.scenario:
         cfg.eval.scenarios = list(args.scenario)
-    path = resolve_checkpoint(args.target, cfg)
+    path = resolve_checkpoint(args.target, cfg)  # a wrong path is answered before torch is imported
+    use_threads(cfg.threads)
+    from sigmarl.evaluation.protocol import evaluate_and_log, rows_file_for
+
     rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
     rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
     means = rows.groupby("scenario", sort=False)[["CR_AA", "CR_AL", "CR_total", "CD", "AS"]].mean()
@@ -114,9 +121,16 @@ def cmd_report(args: argparse.Namespace) -> None:
                                study=study), end="")
         return
     from sigmarl.compose import compose_config
-    from sigmarl.report.command import make_report, make_report_from_folder
+    from sigmarl.tracking.store import missing_store
 
     cfg = compose_config(args.overrides)
+    if not args.source and (db := missing_store(cfg)):  # nothing to read: create no empty store
+        raise SigmarlError(f"nothing to report: no MLflow store at {db}; run `sigmarl sweep` here first, "
+                           "point tracking.tracking_uri=... at the study's store, or use --from FOLDER")
+    if args.animations:
+        use_threads(cfg.threads)
+    from sigmarl.report.command import make_report, make_report_from_folder
+
     models = args.models.split(",") if args.models else None
     options = dict(out_dir=Path(args.out) if args.out else None, latex=args.latex, trim=args.trim,
                    compare_paper=args.compare_paper, models=models, ci=args.ci,
@@ -146,9 +160,57 @@ def _disk_full(error: BaseException) -> str | None:
             return f"{error.strerror}{where}; every file written before is intact: free some space and run again"
         error = error.__cause__ or error.__context__
     return None
+def print_cfg(args: argparse.Namespace) -> int:
+    """`--cfg job|hydra|all`, as in Hydra apps: the config the command would run with (composed
+    and resolved; a sweep prints each job's), Hydra's own settings, or both."""
+    from omegaconf import OmegaConf
+
+    from sigmarl.compose import compose_config, hydra_config
+    from sigmarl.config import to_yaml
+
+    overrides = list(args.overrides)
+    jobs: list[list[str]] = [[]]
+    if args.command == "sweep":
+        from sigmarl.sweep import job_overrides
+
+        overrides, jobs = job_overrides(overrides)
+    if args.cfg in ("hydra", "all"):
+        print(OmegaConf.to_yaml({"hydra": hydra_config(overrides)}), end="")
+    if args.cfg in ("job", "all"):
+        for job in jobs:
+            if job:
+                print(f"# job: {' '.join(job)}")
+            print(to_yaml(compose_config([*(o for o in overrides if not o.startswith("hydra")), *job])), end="")
+    return 0
+
+
+class _PrintAndExit(argparse.Action):
+    """An option that prints something and ends the command, like --version."""
+
+    def __init__(self, option_strings, dest, text, **kwargs):
+        self.text = text
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(self.text(parser, values))
+        parser.exit()
+
+
+def _completion(parser: argparse.ArgumentParser, shell: str) -> str:
+    from sigmarl.completion import bash_script
+
+    return bash_script(parser)
+
+
+def _info(parser: argparse.ArgumentParser, _) -> str:
+    from sigmarl.completion import info
+
+    return info()
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from sigmarl import __version__
+
     p = argparse.ArgumentParser(
         prog="sigmarl",
         description="The SigmaRL observation-design ablation study: maps, environment, MAPPO training, evaluation, report.",
@@ -156,6 +218,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config-dir", action="append", default=[], metavar="DIR",
                    help="a folder of your own configs laid out like conf/ (study/, scenario/, map/, ...), "
                         "searched before sigmarl's; repeatable")
+    p.add_argument("--version", action="version", version=f"sigmarl {__version__}")
+    p.add_argument("--info", action=_PrintAndExit, nargs=0, text=_info,
+                   help="versions, the config folder, the config groups and their options")
+    p.add_argument("--completion", action=_PrintAndExit, choices=["bash"], text=_completion,
+                   help="print a shell completion script: eval \"$(sigmarl --completion bash)\" "
+                        "(zsh: after `autoload bashcompinit && bashcompinit`)")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     maps = sub.add_parser("maps", help="list road maps or draw one to PNG")
     maps.add_argument("action", choices=["list", "show"])
@@ -167,7 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
     train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow)")
     train.add_argument(
         "overrides", nargs="*", default=[],
-        help="Hydra overrides, e.g. obs=no_ego_view seed=3 ppo=smoke resume=true",
+        help="Hydra overrides, e.g. obs=no_ego_view seed=3 resume=true; ppo=smoke is a seconds-long try, "
+             "kept apart in experiment sigmarl-smoke (runs/sigmarl-smoke/...)",
     )
     train.set_defaults(func=cmd_train)
     ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios")
@@ -200,6 +269,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="with --from: print each comparison's verdict and the seeds a decision needs, nothing else")
     rp.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. study=quick or tracking.experiment=NAME")
     rp.set_defaults(func=cmd_report)
+    for sub_parser in (train, ev, sw, rp):
+        sub_parser.add_argument("--cfg", choices=["job", "hydra", "all"],
+                                help="print the config instead of running: job (composed and resolved; a "
+                                     "sweep's every job), hydra (Hydra's settings) or all")
     return p
 
 
@@ -215,7 +288,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         for folder in args.config_dir:
             add_user_conf_dir(folder)
-        rc = args.func(args)
+        rc = print_cfg(args) if getattr(args, "cfg", None) else args.func(args)
     except SigmarlError as e:
         print(f"sigmarl: error: {e}", file=sys.stderr)
         return 2

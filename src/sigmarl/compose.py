@@ -19,6 +19,7 @@ from omegaconf.errors import OmegaConfBaseException
 from sigmarl.config import Config, MapConfig, as_config, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.paths import conf_dir, config_files, user_conf_dirs
+from sigmarl.suggest import hydra_error_message, unknown_keys_message
 from sigmarl.validate import check
 
 
@@ -43,16 +44,28 @@ def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -
             cfg = compose(config_name=config_name, overrides=[*search_path_override(), *overrides])
         OmegaConf.resolve(cfg)
     except (HydraException, OmegaConfBaseException) as e:
-        raise SigmarlError(f"bad config override: {e}") from e
+        raise SigmarlError(f"bad config override: {hydra_error_message(e)}") from e
     except ValueError as e:  # e.g. an integer too long for Python to parse (over 4300 digits)
         raise SigmarlError(f"bad config override: {str(e).splitlines()[0]}") from e
     # `+key=value` adds keys the schema does not know (Hydra's own error message even suggests
     # it): a misspelt flag would be silently ignored.
     unknown = _unknown_keys(cfg, OmegaConf.structured(Config))
     if unknown:
-        raise SigmarlError(f"unknown config key(s): {', '.join(unknown)}")
+        raise SigmarlError(unknown_keys_message(unknown))
     config = check(as_config(cfg))
     return replace(config, fingerprint=fingerprint(config))
+
+
+def hydra_config(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:
+    """Hydra's own settings (the `hydra` node) for these overrides, unresolved as Hydra prints them."""
+    register_configs()
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(conf_dir()), version_base=None):
+            return compose(config_name=config_name, overrides=[*search_path_override(), *overrides],
+                           return_hydra_config=True).hydra
+    except (HydraException, OmegaConfBaseException) as e:
+        raise SigmarlError(f"bad config override: {hydra_error_message(e)}") from e
 
 
 def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list[str]:

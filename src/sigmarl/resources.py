@@ -113,3 +113,15 @@ def end_with_the_sweep() -> None:
 
     if not any(t.name == "sigmarl-sweep-owner" for t in threading.enumerate()):
         threading.Thread(target=watch, name="sigmarl-sweep-owner", daemon=True).start()
+
+
+def use_threads(threads: int) -> None:
+    """torch's CPU threads for this process: every command that computes sets them here from
+    its composed config (`threads`), right before its work (torch is imported only then)."""
+    if threads < 1:
+        from sigmarl.errors import SigmarlError
+
+        raise SigmarlError(f"threads must be positive, got {threads}")
+    import torch
+
+    torch.set_num_threads(threads)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import logging
 import os
 import re
 import sys
@@ -42,14 +43,16 @@ from omegaconf import DictConfig
 from sigmarl.ablation import check_eval
 from sigmarl.config import Config, StudyConfig, as_config
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
+from sigmarl.progress import emit
 from sigmarl.resources import (
     end_with_the_sweep,
     enter_sweep_folder,
     job_threads,
     sweep_folder_override,
     sweep_owner_override,
+    use_threads,
 )
-from sigmarl.run import CONFIG_FILE, DONE_FILE, FAILED_FILE, ROWS_FILE, Run, write_atomic
+from sigmarl.run import CONFIG_FILE, DONE_FILE, FAILED_FILE, ROWS_FILE, ROWS_META, Run, write_atomic
 
 PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
 
@@ -63,6 +66,7 @@ class Job:
     variant: list[str]  # the variant's own overrides (recorded in the run)
     run_dir: str
     fingerprint: str
+    eval_key: str = ""  # the evaluation protocol it is evaluated under (sigmarl.tracking.records)
 
 
 @dataclass
@@ -120,6 +124,7 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
     (run_dir / FAILED_FILE).unlink(missing_ok=True)
     try:
         cfg = replace(cfg, resume=(run_dir / ckpt.RESUME_FILE).exists(), threads=job_threads(cfg.threads))
+        use_threads(cfg.threads)  # training and this job's evaluation
         if cfg.study.checkpoints_from:  # a study that evaluates trained runs, not trains them
             return _evaluate_trained(cfg, run_dir)
         result = train(cfg)
@@ -129,17 +134,16 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
             client = connect(cfg)
             exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
             if done := records.finished_evaluation(client, exp_id, result.run_id, records.eval_key(cfg.eval)):
-                print(f"{run_dir}: already evaluated")
+                emit(f"{run_dir}: already evaluated")
                 write_atomic(run_dir / DONE_FILE, f"{done.info.run_id}\n")
                 return "done"
         path = run_dir / checkpoint_name(cfg.eval.checkpoint)
-        _, eval_run = evaluate_and_log(path, cfg, result.run_id, progress=False,
-                                       rows_file=run_dir / ROWS_FILE)
+        _, eval_run = evaluate_and_log(path, cfg, result.run_id, rows_file=run_dir / ROWS_FILE)
         write_atomic(run_dir / DONE_FILE, f"{eval_run or ''}\n")
         return "done"
     except BaseException as e:
         if was_interrupted(e):  # Ctrl-C or SIGTERM: interrupted, not failed; a re-run resumes
-            print(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", file=sys.stderr)
+            emit(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", logging.WARNING)
             if isinstance(e, KeyboardInterrupt):
                 raise
             raise Terminated() from e
@@ -151,7 +155,7 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
             write_atomic(run_dir / FAILED_FILE, message)
         except OSError:  # an unwritable run folder is itself the error reported
             pass
-        print(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", file=sys.stderr)
+        emit(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", logging.ERROR)
         return "failed"
 
 
@@ -353,7 +357,10 @@ def _checked_job(label: str, seed: int, overrides: list[str], variant: list[str]
 
     cfg = compose(overrides)
     check_eval(cfg.eval)
-    job = Job(f"{label}/seed{seed}", label, seed, overrides, variant, cfg.run_dir, cfg.fingerprint)
+    from sigmarl.tracking.records import eval_key
+
+    job = Job(f"{label}/seed{seed}", label, seed, overrides, variant, cfg.run_dir, cfg.fingerprint,
+              eval_key(cfg.eval))
     earlier = _earlier_config(Path(cfg.run_dir))
     if earlier is not None and earlier.fingerprint != cfg.fingerprint:
         raise SigmarlError(f"{cfg.run_dir} holds a run of another training config "
@@ -423,6 +430,9 @@ def launch(plan: SweepPlan) -> int:
     # conf/hydra/launcher/ray.yaml takes the Ray plugin's config name on purpose (a ready config
     # behind `hydra/launcher=ray`); Hydra warns that it validates it against the plugin's schema.
     warnings.filterwarnings("ignore", message=r"(?s).*validated against ConfigStore schema")
+    if all(finished(job) for job in plan.jobs):  # answered from the run folders: no launcher, no store
+        print("every job of this sweep is already trained and evaluated")
+        return summarise(plan)
     _prepare_store(plan)
     overrides = multirun_overrides(plan, write_plan(plan))
     register_configs()
@@ -434,6 +444,26 @@ def launch(plan: SweepPlan) -> int:
     finally:
         sys.argv = argv
     return summarise(plan)
+
+
+def finished(job: Job) -> bool:
+    """Whether the job's run folder holds this very job, done: `evaluated.txt`, no `failed.txt`,
+    a config.yaml of the same fingerprint (checked when the plan was made) and rows measured
+    under the job's evaluation protocol."""
+    run_dir = Path(job.run_dir)
+    if not (run_dir / DONE_FILE).is_file() or (run_dir / FAILED_FILE).exists():
+        return False
+    try:
+        evaluated = json.loads((run_dir / ROWS_META).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return (run_dir / CONFIG_FILE).is_file() and evaluated.get("eval_key") == job.eval_key
+
+
+def job_overrides(user_overrides: Sequence[str]) -> tuple[list[str], list[list[str]]]:
+    """For `sweep --cfg`: Hydra's settings the jobs share, and each job's own overrides."""
+    plan = plan_sweep(user_overrides)
+    return plan.hydra, [j.overrides for j in plan.jobs]
 
 
 def _prepare_store(plan: SweepPlan) -> None:

@@ -1,5 +1,15 @@
-"""Traffic environment: a batched VMAS scenario (dynamics, observation, reward, collisions, resets)."""
+"""Traffic environment: a batched VMAS scenario (dynamics, observation, reward, collisions, resets).
 
-from sigmarl.env.factory import make_env
+`make_env` is imported on first use: `sigmarl.env.params` (the paper's constants) is read by
+code that needs no simulator, and importing VMAS and torchrl costs seconds.
+"""
 
 __all__ = ["make_env"]
+
+
+def __getattr__(name: str):
+    if name == "make_env":
+        from sigmarl.env.factory import make_env
+
+        return make_env
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

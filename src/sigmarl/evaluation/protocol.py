@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tempfile
 from pathlib import Path
 
 import pandas as pd
@@ -22,35 +21,13 @@ from sigmarl.ablation import (
 from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.env.paper_rules import rules_label
 from sigmarl.env.params import RULES_REVISION
-from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
+from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noqa: F401 (their old home)
 from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
 from sigmarl.run import ROWS_FILE, ROWS_META, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import connect, experiment_id, records
-
-
-def checkpoint_name(which: str) -> str:
-    from sigmarl.training import checkpoint as ckpt
-
-    return {"best": ckpt.BEST_FILE, "final": ckpt.FINAL_FILE}[which]  # checked at composition
-
-
-def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = None) -> Path:
-    """A checkpoint file from a path, a training run folder, or an MLflow training run id."""
-    name = checkpoint_name(cfg.eval.checkpoint)
-    path = Path(target)
-    if path.is_file():
-        return path
-    if path.is_dir():
-        if (path / name).is_file():
-            return path / name
-        raise SigmarlError(f"{path} holds no {name} (has the training finished? see eval.checkpoint)")
-    if "/" in target or target.endswith(".pt"):
-        raise SigmarlError(f"checkpoint not found: {target}")
-    out = download_dir or Path(tempfile.mkdtemp(prefix="sigmarl-ckpt-"))
-    return records.training_checkpoint(connect(cfg, write=False), target, name, out)
 
 
 def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] | None = None,

@@ -14,13 +14,13 @@ from tensordict import TensorDict
 from tensordict.nn import NormalParamExtractor, TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
-from tqdm.auto import tqdm
 
 from sigmarl.compose import scenario_map_config
 from sigmarl.config import Config
 from sigmarl.env.factory import make_scenario, step_scenario
 from sigmarl.env.paper_rules import for_evaluation
 from sigmarl.errors import SigmarlError
+from sigmarl.progress import Progress
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.training.networks import PolicyHead
 
@@ -95,7 +95,9 @@ def evaluate_policy(
     al_steps = torch.zeros_like(aa_steps)
     aa_agent, al_agent = torch.zeros_like(aa_steps), torch.zeros_like(aa_steps)
     dist_sum, speed_sum = torch.zeros_like(aa_steps), torch.zeros_like(aa_steps)
-    for _ in tqdm(range(steps), desc=f"evaluate {scenario}", disable=not progress, leave=False):
+    bar = Progress(steps, f"{cfg.model} seed {cfg.seed}", f"evaluate {scenario}", enabled=progress)
+    for _ in range(steps):
+        bar.update(1)
         try:
             action = act(obs)
         except RuntimeError as e:  # typically a shape mismatch in the first layer
@@ -114,6 +116,7 @@ def evaluate_policy(
         al_agent += al.sum(-1)
         dist_sum += sc.step_d_center.sum(-1)
         speed_sum += sc.step_speed.sum(-1)
+    bar.close()
     agent_steps = steps * n_agents
     rows = pd.DataFrame({
         "scenario": scenario,

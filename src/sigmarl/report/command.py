@@ -83,7 +83,8 @@ def make_report_from_folder(
                     extra_notes=results.notes, **options)
     if client is not None:
         records.log_report(client, cfg.tracking.experiment, report.composite, report.paths.values(),
-                           {"source": ",".join(str(r.resolve()) for r in roots)})
+                           {"source": ",".join(str(r.resolve()) for r in roots)},
+                           source=",".join(str(r) for r in roots))
     return report
 
 

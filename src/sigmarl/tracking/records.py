@@ -17,22 +17,29 @@ import tempfile
 import time
 from collections.abc import Iterable
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from sigmarl import crash
 from sigmarl.ablation import TIMINGS
 from sigmarl.config import EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError, was_interrupted
-from sigmarl.metrics import METRIC_COLUMNS
+from sigmarl.metrics import METRIC_COLUMNS, METRICS
 from sigmarl.run import REWARD, ROWS_FILE
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking.store import experiment_id
 
+if TYPE_CHECKING:  # pandas is imported where rows are read: a sweep's quick checks need only eval_key
+    import pandas as pd
+
 ROWS_ARTIFACT = ROWS_FILE
 # The process that logs a report run, so that a later report can tell a dead one's run
 OWNER_HOST, OWNER_PID = "sigmarl.host", "sigmarl.pid"
+# An evaluation run's scenario means, in the table's units with the unit in the name (the rows
+# artifact keeps the rows' own units: collision rates as fractions of steps)
+_SUFFIX = {"percent": "pct", "cm": "cm", "m/s": "mps"}
+METRIC_NAMES = {m.name: f"{m.name}_{_SUFFIX.get(m.unit, m.unit)}" for m in METRICS}
+METRIC_SCALE = {m.name: m.scale for m in METRICS if m.scale != 1.0}
 
 
 def eval_key(eval_cfg: EvalConfig) -> str:
@@ -76,13 +83,14 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
         for status in ("RUNNING", "FAILED", "KILLED"):
             for old in _evaluations(client, exp_id, tags["train_run_id"], tags["eval_key"], status):
                 client.delete_run(old.info.run_id)
+    parent = _parent_tag(client, exp_id, tags.get("train_run_id"))
     run = client.create_run(exp_id, run_name=f"eval-{tags.get('model', 'policy')}-seed{tags.get('seed', '')}",
-                            tags={"kind": "evaluation", **tags})
+                            tags={"kind": "evaluation", **tags, **parent})
     rid = run.info.run_id
     try:
         means = rows.groupby("scenario")[METRIC_COLUMNS].mean()
         now = int(time.time() * 1000)
-        metrics = [Metric(f"{scenario}/{metric}", float(value), now, 0)
+        metrics = [Metric(f"{scenario}/{METRIC_NAMES.get(metric, metric)}", float(value) * METRIC_SCALE.get(metric, 1.0), now, 0)
                    for scenario, row in means.iterrows() for metric, value in row.items()]
         client.log_batch(rid, metrics=metrics, params=[Param(k, v) for k, v in params.items()])
         crash.point("eval:logging")
@@ -97,6 +105,18 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
     return rid
 
 
+def _parent_tag(client, exp_id: str, train_run_id: str | None) -> dict[str, str]:
+    """MLflow's tag that nests a run under another (its UI shows an evaluation under its
+    training run), where the training run is in the same experiment (the UI nests only there)."""
+    if not train_run_id:
+        return {}
+    try:
+        same = client.get_run(train_run_id).info.experiment_id == exp_id
+    except Exception:  # a training run this store does not hold (evaluated from a copied folder)
+        return {}
+    return {"mlflow.parentRunId": train_run_id} if same else {}
+
+
 def _end(client, rid: str, error: BaseException) -> None:
     """KILLED for an interruption (Ctrl-C, SIGTERM), FAILED otherwise; never raises."""
     try:
@@ -107,6 +127,8 @@ def _end(client, rid: str, error: BaseException) -> None:
 
 def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
     """All per-simulation rows of the experiment's finished evaluation runs."""
+    import pandas as pd
+
     exp_id = experiment_id(client, experiment)
     if exp_id is None:
         raise SigmarlError(f"no MLflow experiment named {experiment!r} (set tracking.experiment=...)")
@@ -141,6 +163,8 @@ def _last_per_step(client, run_id: str, metric: str) -> dict[int, float]:
 def load_training_curves(client, experiment: str, metric: str = REWARD) -> pd.DataFrame:
     """(model, seed, iteration, reward, seconds) for the experiment's training runs; seconds:
     the iteration's compute time (NaN where the run logged no timings)."""
+    import pandas as pd
+
     columns = ["model", "seed", "iteration", "reward", "seconds"]
     exp_id = experiment_id(client, experiment)
     if exp_id is None:
@@ -189,12 +213,14 @@ def training_checkpoint(client, run_id: str, name: str, download_dir: Path) -> P
 
 
 def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable[Path],
-               tags: dict[str, str]) -> str:
-    """A report run: the table files, figures and composite scores, with what it was built from."""
+               tags: dict[str, str], source: str | None = None) -> str:
+    """A report run: the table files, figures and composite scores, with what it was built from;
+    named after what it reports (`report <experiment>`, or `report <results folder>`)."""
     exp_id = experiment_id(client, experiment, create=True)
     end_dead_reports(client, exp_id)
     owner = {OWNER_HOST: socket.gethostname(), OWNER_PID: str(os.getpid())}
-    run = client.create_run(exp_id, run_name="report", tags={"kind": "report", **owner, **tags})
+    run = client.create_run(exp_id, run_name=f"report {source or experiment}",
+                            tags={"kind": "report", **owner, **tags})
     rid = run.info.run_id
     try:
         for _, r in composite.dropna(subset=["CS"]).iterrows():

@@ -44,9 +44,20 @@ def tracking_uri(cfg: Config) -> str:
     """The configured URI, or MLflow's default (a SQLite `mlflow.db` in the working folder)."""
     if cfg.tracking.tracking_uri:
         return str(cfg.tracking.tracking_uri)
+    # MLflow's own rule without importing it (seconds), while nothing in this process can have
+    # called mlflow.set_tracking_uri: the variable, else ./mlflow.db unless ./mlruns holds runs
+    if "mlflow" not in sys.modules and not Path("mlruns").exists():
+        return os.environ.get("MLFLOW_TRACKING_URI") or f"sqlite:///{Path('mlflow.db').absolute()}"
     from mlflow.tracking import get_tracking_uri
 
     return get_tracking_uri()
+
+
+def missing_store(cfg: Config) -> Path | None:
+    """The SQLite file of the configured store if it does not exist: a command that only reads
+    finds nothing there, and should say so rather than create an empty store."""
+    db = sqlite_file(tracking_uri(cfg))
+    return db if db is not None and not db.exists() else None
 
 
 def sqlite_file(uri: str) -> Path | None:

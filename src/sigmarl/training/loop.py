@@ -16,12 +16,12 @@ from typing import Any, NoReturn
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from sigmarl import crash
 from sigmarl.config import Config, PPOConfig, as_dict, to_yaml
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.paths import ensure_writable
+from sigmarl.progress import Progress
 from sigmarl.run import CONFIG_FILE, REWARD, RUN_ID_FILE, Run, write_atomic
 from sigmarl.tracking import Tracker, flatten
 from sigmarl.training import checkpoint as ckpt
@@ -247,7 +247,7 @@ def _train(cfg: Config, run_dir: Path) -> TrainResult:
     pending: list[tuple[int, dict[str, float]]] = []  # metrics not yet sent (see below)
     history: list[dict[str, float]] = []
     metrics_path = run_dir / METRICS_FILE
-    bar = tqdm(total=ppo.iterations, initial=start, desc="train", unit="it", dynamic_ncols=True)
+    bar = Progress(ppo.iterations, f"{cfg.model} seed {cfg.seed}", "train", initial=start)
     try:
         if state:
             # the rows after the resume point are computed again; MLflow gets what it missed
@@ -302,8 +302,7 @@ def _train(cfg: Config, run_dir: Path) -> TrainResult:
             if done_its == ppo.iterations:
                 ckpt.save_atomic(ckpt.policy_only(snapshot(done_its, reward)), run_dir / ckpt.FINAL_FILE)
                 crash.point("train:final")
-            bar.set_postfix(fps=f"{metrics['frames_per_s']:.0f}", reward=f"{reward:.3f}", refresh=False)
-            bar.update(1)
+            bar.update(1, reward=f"{reward:.3f}", fps=f"{metrics['frames_per_s']:.0f}")
         if stop == ppo.iterations:
             _complete_record(tracker, run_dir, stop)
     except BaseException as e:  # Ctrl-C, or SIGTERM through the CLI's handler, or a failure
