@@ -17,6 +17,7 @@ import yaml
 from sigmarl.cli import build_parser, main
 from sigmarl.completion import bash_script
 from sigmarl.compose import compose_config
+from sigmarl.errors import SigmarlError
 
 HEAVY = ("torch", "torchrl", "vmas", "mlflow", "pandas", "matplotlib")
 
