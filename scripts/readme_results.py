@@ -24,21 +24,29 @@ STUDY = "results/paper-budget"  # relative to ROOT: the report's notes name run 
 # README marker name -> the report file it holds
 BLOCKS = {"results-table": "table.md", "results-statistics": "statistics.md", "results-training": "training.md",
           "results-verdicts": "verdicts.md"}
+# the generalisation study: the same models evaluated on the later maps and denser traffic
+GENERALISATION = "results/generalisation"
+GENERALISATION_BLOCKS = {"generalisation-matrix": "matrix.md", "generalisation-verdicts": "verdicts.md"}
 
 
 def report_files() -> dict[str, str]:
-    """The report's text for each block, by marker name."""
+    """The reports' text for each block, by marker name."""
+    return {**_report(STUDY, BLOCKS, ["--compare-paper"]),
+            **_report(GENERALISATION, GENERALISATION_BLOCKS, ["study=generalisation"])}
+
+
+def _report(folder: str, blocks: dict[str, str], options: list[str]) -> dict[str, str]:
     here = Path.cwd()
     with tempfile.TemporaryDirectory() as tmp:
         os.chdir(ROOT)  # tracking is off: the report writes only into `tmp`
         try:
-            rc = sigmarl(["report", "--from", STUDY, "--out", tmp, "--compare-paper", "--ci", "--no-figures",
+            rc = sigmarl(["report", "--from", folder, "--out", tmp, "--ci", "--no-figures", *options,
                           "tracking.enabled=false"])
         finally:
             os.chdir(here)
         if rc:
             sys.exit(rc)
-        return {name: (Path(tmp) / file).read_text(encoding="utf-8") for name, file in BLOCKS.items()}
+        return {name: (Path(tmp) / file).read_text(encoding="utf-8") for name, file in blocks.items()}
 
 
 def readme_block(text: str, name: str) -> tuple[int, int]:
@@ -54,12 +62,12 @@ def warn_uncommitted() -> None:
     """The blocks name unfinished run folders; ones git does not hold yet make a README that a
     clean clone does not rebuild (tests/test_readme_results.py then fails there)."""
     try:
-        out = subprocess.run(["git", "status", "--porcelain", "--", STUDY], cwd=ROOT, capture_output=True,
+        out = subprocess.run(["git", "status", "--porcelain", "--", STUDY, GENERALISATION], cwd=ROOT, capture_output=True,
                              text=True, check=True).stdout
     except (OSError, subprocess.CalledProcessError):
         return
     if out.strip():
-        print(f"warning: {STUDY} has {len(out.splitlines())} uncommitted change(s); commit them with the "
+        print(f"warning: {STUDY} or {GENERALISATION} has {len(out.splitlines())} uncommitted change(s); commit them with the "
               "README, or a clean clone's README test fails", file=sys.stderr)
 
 

@@ -152,9 +152,12 @@ def test_writes_the_table_files(tmp_path):
     assert {p.name for p in tmp_path.iterdir()} == {
         "table.md", "table.csv", "summary.csv", "composite_scores.csv", "table.tex",
         "improvement.csv", "aggregate_scores.csv", "statistics.md", "verdicts.md", "verdicts.csv",
-        "marl_eval.json", "marl_eval_intervals.json",
+        "marl_eval.json", "marl_eval_intervals.json", "matrix.md",
     }  # fmt: skip
     assert report.paths["markdown"].read_text() == report.markdown
+    matrix = report.paths["matrix"].read_text().splitlines()
+    assert matrix[2] == "| Scenario | " + " | ".join(MODELS) + " |" and len(matrix) == 4 + len(SCENARIOS) + 5 + len(SCENARIOS)
+    assert matrix[4 + len(SCENARIOS) + 1] == "M0: how it collides, how it drives:"
     assert report.table.values.shape == (len(SCENARIOS) * 6, len(MODELS))
     header = report.markdown.splitlines()[0]
     assert header == "| Scenario | Metric | " + " | ".join(MODELS) + " |"

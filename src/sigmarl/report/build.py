@@ -24,6 +24,7 @@ from sigmarl.report.scores import aggregate_scores, composite_intervals, improve
 from sigmarl.report.tables import (
     ResultTable,
     build_table,
+    matrix_markdown,
     statistics_markdown,
     to_csv_frame,
     to_latex,
@@ -175,6 +176,8 @@ def build_report(
         "statistics": out_dir / "statistics.md",
     }
     paths["markdown"].write_text(markdown, encoding="utf-8")
+    paths["matrix"] = out_dir / "matrix.md"
+    paths["matrix"].write_text(matrix_markdown(table, baseline if baseline in models else ("M0" if "M0" in models else None)), encoding="utf-8")
     paths["statistics"].write_text(statistics, encoding="utf-8")
     for key, frame in [("csv", to_csv_frame(table)), ("summary", summary), ("composite", composite),
                        ("improvement", better), ("aggregates", aggregates)]:

@@ -270,3 +270,33 @@ def statistics_markdown(
             "(scenario, seed) scores.",
         ]
     return "\n".join(lines) + "\n" if lines else ""
+
+
+def matrix_markdown(table: ResultTable, baseline: str | None = None, metric: str = "CR_total",
+                    digits: int = DIGITS) -> str:
+    """A study over many scenarios at a glance: `metric` for every model (columns) on every
+    scenario (rows), with intervals, best per row in bold; then the baseline's collision rates
+    split into agent-agent and agent-lane, with its deviation and speed, to say how a scenario
+    breaks it."""
+    values = table.values.xs(metric, level="metric")
+    lo, hi = (t.xs(metric, level="metric") for t in (table.ci_low, table.ci_high))
+    best = best_mask(table.values).xs(metric, level="metric")
+    unit = "%" if UNITS[metric] == "percent" else UNITS[metric]
+    lines = [f"{metric} ({unit}), mean over seeds [95% interval over seeds and simulations]; best per "
+             "scenario in bold:", "", "| Scenario | " + " | ".join(table.models) + " |",
+             "|---|" + "---:|" * len(table.models)]
+    for scenario in table.scenarios:
+        cells = []
+        for m in table.models:
+            text = _interval(values.loc[scenario, m], lo.loc[scenario, m], hi.loc[scenario, m], digits)
+            cells.append(f"**{text}**" if best.loc[scenario, m] else text)
+        lines.append(f"| {scenario} | " + " | ".join(cells) + " |")
+    if baseline in table.models:
+        lines += ["", f"{baseline}: how it collides, how it drives:", "",
+                  "| Scenario | CR_AA (%) | CR_AL (%) | CD (cm) | AS (m/s) |", "|---|---:|---:|---:|---:|"]
+        for scenario in table.scenarios:
+            cells = [_interval(table.values.loc[(scenario, k), baseline], table.ci_low.loc[(scenario, k), baseline],
+                               table.ci_high.loc[(scenario, k), baseline], digits)
+                     for k in ("CR_AA", "CR_AL", "CD", "AS")]
+            lines.append(f"| {scenario} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
