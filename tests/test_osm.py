@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sigmarl.compose import compose_config
-from sigmarl.errors import MapError
+from sigmarl.errors import MapError, SigmarlError
 from sigmarl.maps import load_map
 from sigmarl.maps.cpm import CPM_LOOPS, load_cpm
 from sigmarl.maps.model import RoadMap
@@ -207,5 +207,5 @@ def test_osm_through_config(tmp_path):
     cfg = compose_config(["map=osm", f"map.path={LANELET2}", "map.routes=[[10,30]]"]).map
     m = load_map(cfg)
     assert m.name == "lanelet2_two_way" and [r.lanelet_ids for r in m.routes] == [(10, 30)]
-    with pytest.raises(MapError, match="map.path"):
-        load_map(compose_config(["map=osm"]).map)
+    with pytest.raises(SigmarlError, match="map.path"):  # caught at composition now
+        compose_config(["map=osm"])

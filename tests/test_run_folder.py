@@ -111,7 +111,7 @@ def test_kill_9_of_a_sweep_ends_its_workers_and_a_rerun_converges(tmp_path):
     training for over an hour, and a re-run trained the same folders beside them."""
     store = f"tracking.tracking_uri=sqlite:///{tmp_path}/mlflow.db"
     run = tmp_path / "runs" / "M0" / "seed0"
-    sweep = _sweep(tmp_path, store, 40)
+    sweep = _sweep(tmp_path, store, 12)
     deadline = time.time() + 300
     while not (run / RESUME_FILE).exists() and time.time() < deadline:
         time.sleep(0.2)
@@ -128,11 +128,11 @@ def test_kill_9_of_a_sweep_ends_its_workers_and_a_rerun_converges(tmp_path):
             time.sleep(0.5)
     else:
         pytest.fail("the worker still holds the run folder a minute after its sweep died")
-    rerun = _sweep(tmp_path, store, 40)
+    rerun = _sweep(tmp_path, store, 12)
     out, err = rerun.communicate(timeout=900)
     assert rerun.returncode == 0, err[-2000:]
     metrics = pd.read_csv(run / "metrics.csv")
-    assert list(metrics["iteration"]) == list(range(1, 41))  # one record per iteration
+    assert list(metrics["iteration"]) == list(range(1, 13))  # one record per iteration
     assert _finished_evaluations(store) == 1
 
 

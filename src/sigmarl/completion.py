@@ -74,7 +74,7 @@ def info() -> str:
     import platform
 
     import sigmarl
-    from sigmarl.ablation import SCENARIOS
+    from sigmarl.scenarios import scenario_names
 
     def version(package: str) -> str:
         try:
@@ -87,7 +87,7 @@ def info() -> str:
              "config groups (GROUP=OPTION; defaults: map=cpm_intersection obs=full network=paper ppo=paper "
              "study=paper hydra/launcher=joblib in a sweep):"]
     lines += [f"  {g:<15} {', '.join(group_options(g))}" for g in GROUPS]
-    lines += [f"scenarios (eval.scenarios=[...]): {', '.join(SCENARIOS)}",
+    lines += [f"scenarios (eval.scenarios=[...]): {', '.join(scenario_names())}",
               "packages: " + ", ".join(f"{p} {version(p)}" for p in
                                        ("torch", "torchrl", "tensordict", "vmas", "hydra-core", "mlflow")),
               "print a command's composed config: sigmarl COMMAND --cfg job [overrides]"]
