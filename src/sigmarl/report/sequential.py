@@ -41,7 +41,7 @@ import pandas as pd
 
 from sigmarl.errors import SigmarlError
 from sigmarl.report.tdist import normal_cdf, normal_ppf
-from sigmarl.report.verdicts import METRICS, Design, Test, comparisons, holm
+from sigmarl.report.verdicts import METRICS, Design, Test, comparisons, holm, verdict
 
 _GRID = 2001  # points of the z grid
 _SPAN = 10.0  # the grid covers +-_SPAN standard deviations of B(1)
@@ -144,16 +144,8 @@ def sequential_decide(
     p_diff = [0.0 if p in ("better", "worse") else 1.0 if p else t.p_difference for t, p in zip(tests, prev, strict=True)]
     p_eq = [0.0 if p == "equivalent" else 1.0 if p else t.p_equivalence for t, p in zip(tests, prev, strict=True)]
     adj_diff, adj_eq = holm(p_diff), holm(p_eq)
-    verdicts = []
-    for t, sign, p, ad, ae, (a_diff, a_eq) in zip(tests, directions, prev, adj_diff, adj_eq, at, strict=True):
-        if p:
-            verdicts.append(p)
-        elif ad <= a_diff:
-            verdicts.append("better" if t.difference * sign > 0 else "worse")
-        elif ae <= a_eq:
-            verdicts.append("equivalent")
-        else:
-            verdicts.append("undecided")
+    verdicts = [p or verdict(t, sign, ad, ae, a_diff, a_eq)
+                for t, sign, p, ad, ae, (a_diff, a_eq) in zip(tests, directions, prev, adj_diff, adj_eq, at, strict=True)]
     decided_before = np.array([p is not None for p in prev])
     return (verdicts, np.where(decided_before, math.nan, adj_diff), np.where(decided_before, math.nan, adj_eq),
             np.array([a[0] for a in at]))

@@ -200,15 +200,20 @@ def decide(
     p_diff = holm([t.p_difference for t in tests])
     p_eq = holm([t.p_equivalence for t in tests])
     levels = np.broadcast_to(np.asarray(alpha, float), (len(tests),))
-    verdicts = []
-    for t, sign, pd_, pe, a in zip(tests, directions, p_diff, p_eq, levels, strict=True):
-        if pd_ <= a:
-            verdicts.append("better" if t.difference * sign > 0 else "worse")
-        elif pe <= a:
-            verdicts.append("equivalent")
-        else:
-            verdicts.append("undecided")
+    verdicts = [verdict(t, sign, pd_, pe, a, a)
+                for t, sign, pd_, pe, a in zip(tests, directions, p_diff, p_eq, levels, strict=True)]
     return verdicts, p_diff, p_eq
+
+
+def verdict(test: Test, sign: int, p_difference: float, p_equivalence: float, level_difference: float,
+            level_equivalence: float) -> str:
+    """The verdict of one comparison from its adjusted p-values: a difference first (better or
+    worse by the metric's direction `sign`), then equivalence, else undecided."""
+    if p_difference <= level_difference:
+        return "better" if test.difference * sign > 0 else "worse"
+    if p_equivalence <= level_equivalence:
+        return "equivalent"
+    return "undecided"
 
 
 def plan_seeds(c: Comparison, margin: float, alpha_diff: float, alpha_eq: float, power: float
