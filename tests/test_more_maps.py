@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from map_facts import assert_lanelets_are_the_facts
 from shapely import ops
 from shapely.geometry import LineString, Point, Polygon
 
@@ -90,16 +91,7 @@ def test_shipped_files_are_the_facts_converted(tmp_path):
 def test_center_lines_successors_and_width_are_the_facts(key):
     facts, m = FACTS[key], roadmap(key)
     assert m.lane_width == facts["lane_width"]
-    assert sorted(m.lanelets) == sorted(int(i) for i in facts["lanelets"])
-    for lid, la in facts["lanelets"].items():
-        got = m.lanelets[int(lid)]
-        np.testing.assert_allclose(got.center, la["center"], atol=1e-9)
-        assert got.successors == sorted(la["successors"])
-        # Boundaries: the center line offset by +-w/2 along a unit left normal.
-        np.testing.assert_allclose(got.width, facts["lane_width"], atol=1e-12)
-        across = got.left - got.right
-        tangent = np.gradient(got.center, axis=0)
-        assert np.all(tangent[:, 0] * across[:, 1] - tangent[:, 1] * across[:, 0] > 0)  # left is left
+    assert_lanelets_are_the_facts(m, facts)
 
 
 def test_route_length_is_the_center_line_polyline_by_hand():
@@ -180,6 +172,15 @@ def test_a_vehicle_on_the_center_line_touches_no_boundary_of_its_lane(key):
             assert not any(poly.intersects(b) for b in bounds), (key, ids, s)
 
 
+def _drive(env, td, n_sims: int, n: int, steps: int = 20) -> None:
+    """`steps` steps at a constant action (with whatever respawns they cause); observations stay finite."""
+    action = torch.tensor([0.5, 0.0]).expand(n_sims, n, 2).clone()
+    for _ in range(steps):
+        td.set(("agents", "action"), action)
+        td = env.step_mdp(env.step(td))
+        assert torch.isfinite(td.get(("agents", "observation"))).all()
+
+
 @pytest.mark.parametrize("key", KEYS)
 def test_authors_agent_count_spawns_and_drives(key):
     """The evaluation's protocol (test mode, 32 simulations, the default evaluation seed) at the
@@ -205,11 +206,7 @@ def test_authors_agent_count_spawns_and_drives(key):
             assert 0.25 <= line.project(p) <= line.length - 0.24 + 1e-6
         d = torch.cdist(sc.pos[e], sc.pos[e]) + torch.eye(n) * 1e9
         assert float(d.min()) >= MIN_GAP - 1e-6
-    action = torch.tensor([0.5, 0.0]).expand(cfg.eval.n_sims, n, 2).clone()
-    for _ in range(20):
-        td.set(("agents", "action"), action)
-        td = env.step_mdp(env.step(td))
-        assert torch.isfinite(td.get(("agents", "observation"))).all()
+    _drive(env, td, cfg.eval.n_sims, n)
     moved = (sc.pos.double() - pos0).norm(dim=-1)
     assert torch.isfinite(sc.pos).all() and float(moved.median()) > 0.1
     env.close()
@@ -229,11 +226,7 @@ def test_dense_cpm_spawns_and_drives(n):
     sc = env.scenario
     d = torch.cdist(sc.pos, sc.pos) + torch.eye(n) * 1e9
     assert float(d.min()) >= MIN_GAP - 1e-6
-    action = torch.tensor([0.5, 0.0]).expand(cfg.eval.n_sims, n, 2).clone()
-    for _ in range(20):
-        td.set(("agents", "action"), action)
-        td = env.step_mdp(env.step(td))
-    assert torch.isfinite(td.get(("agents", "observation"))).all()
+    _drive(env, td, cfg.eval.n_sims, n)
     env.close()
 
 

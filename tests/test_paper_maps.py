@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from map_facts import assert_lanelets_are_the_facts
 from shapely.geometry import LineString, Point, Polygon
 
 from sigmarl.compose import compose_config
@@ -50,16 +51,7 @@ def test_shipped_files_are_the_facts_converted(tmp_path):
 
 def test_center_lines_and_successors_are_the_facts(paper):
     _, facts, m = paper
-    assert sorted(m.lanelets) == sorted(int(i) for i in facts["lanelets"])
-    for lid, la in facts["lanelets"].items():
-        got = m.lanelets[int(lid)]
-        np.testing.assert_allclose(got.center, la["center"], atol=1e-9)
-        assert got.successors == sorted(la["successors"])
-        # Boundaries: the center line offset by +-w/2 along a unit left normal.
-        np.testing.assert_allclose(got.width, facts["lane_width"], atol=1e-12)
-        across = got.left - got.right
-        tangent = np.gradient(got.center, axis=0)
-        assert np.all(tangent[:, 0] * across[:, 1] - tangent[:, 1] * across[:, 0] > 0)  # left is left
+    assert_lanelets_are_the_facts(m, facts)
     assert m.lane_width == facts["lane_width"] == 0.20
 
 

@@ -13,7 +13,14 @@ from omegaconf import OmegaConf
 from sigmarl.compose import compose_config
 from sigmarl.config import as_dict
 from sigmarl.errors import SigmarlError
-from sigmarl.tracking import Tracker, artifact_location, flatten, git_commit
+from sigmarl.tracking import (
+    NullTracker,
+    TrainingRun,
+    artifact_location,
+    flatten,
+    git_commit,
+    open_tracker,
+)
 
 
 def test_flatten_dotted_keys_and_lists_as_one_value() -> None:
@@ -62,11 +69,15 @@ def test_sqlite_artifacts_live_beside_the_database(tmp_path: Path) -> None:
 
 
 def test_disabled_tracking_records_nothing(tmp_path: Path) -> None:
-    tracker = Tracker.open(compose_config(["tracking.enabled=false"]))
-    assert not tracker.enabled and tracker.run_id is None
+    tracker = open_tracker(compose_config(["tracking.enabled=false", f"tracking.tracking_uri=sqlite:///{tmp_path}/m.db"]))
+    assert isinstance(tracker, NullTracker)
+    assert tracker.training_run("abc").run_id == "abc"  # an earlier tracked attempt's id is kept
+    tracker = tracker.training_run()
+    assert tracker.run_id is None and tracker.status() is None
     tracker.log_metrics([(1, {"x": 1.0})])
     tracker.log_artifact(tmp_path / "missing")
     tracker.finish()
+    assert not list(tmp_path.iterdir())  # no store was created
 
 
 @pytest.mark.parametrize(
@@ -79,7 +90,7 @@ def test_unusable_store_is_one_clear_error(uri: str, tmp_path: Path, monkeypatch
     (tmp_path / "a_file").write_text("not a folder")
     cfg = compose_config([f"tracking.tracking_uri={uri.format(tmp=tmp_path)}"])
     with pytest.raises(SigmarlError, match="MLflow (tracking )?store"):
-        Tracker.open(cfg)
+        open_tracker(cfg)
 
 
 def _run_traced(call, sigterm_at: int | None = None) -> int:
@@ -126,17 +137,17 @@ def test_a_sigterm_inside_a_store_call_is_raised_when_the_call_has_ended(
                               "tracking.experiment=sig"])
         metrics = [Metric(name, float(step), 0, step) for step in range(1, 6) for name in "ab"]
 
-        def log(tracker: Tracker) -> None:
+        def log(tracker: TrainingRun) -> None:
             tracker.client.log_batch(tracker.run_id, metrics=metrics)
 
-        log(Tracker.open(cfg))  # warm: the first call also compiles its statements
-        tracker = Tracker.open(cfg)
+        log(open_tracker(cfg).training_run())  # warm: the first call also compiles its statements
+        tracker = open_tracker(cfg).training_run()
         lines = _run_traced(lambda: log(tracker))
         assert lines > 1000  # the tracer sees MLflow's and SQLAlchemy's lines
         capfd.readouterr()
         for k in range(20):
             errors._terminating = False
-            tracker = Tracker.open(cfg)
+            tracker = open_tracker(cfg).training_run()
             with pytest.raises(errors.Terminated):
                 _run_traced(lambda t=tracker: log(t), sigterm_at=1 + lines * k // 20)
             tracker.finish("KILLED")

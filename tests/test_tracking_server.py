@@ -160,17 +160,17 @@ def test_parallel_sweep_logs_to_the_server_and_report_reads_it(server, tmp_path,
     assert not (tmp_path / "mlartifacts").exists() and not (tmp_path / "mlflow.db").exists()
 
 
-# Two processes log through sigmarl's Tracker at the same moment: 150 iterations of three
+# Two processes log through sigmarl's MLflow tracker at the same moment: 150 iterations of three
 # metrics each (one request per iteration, as training does) and an artifact.
 LOGGER = """
 import sys, time
 from pathlib import Path
 from sigmarl.compose import compose_config
-from sigmarl.tracking import Tracker
+from sigmarl.tracking import open_tracker
 uri, seed, start, out = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), Path(sys.argv[4])
 cfg = compose_config(["study=quick", f"tracking.tracking_uri={uri}", "tracking.experiment=concurrency",
                       f"seed={seed}"])
-tracker = Tracker.open(cfg)
+tracker = open_tracker(cfg).training_run()
 time.sleep(max(0.0, start - time.time()))
 for i in range(150):
     tracker.log_metrics([(i, {"a": seed + i, "b": 2.0 * i, "c": -float(i)})])

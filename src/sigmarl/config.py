@@ -134,7 +134,8 @@ class EvalConfig:
 class TrackingConfig:
     tracking_uri: str = ""  # empty: MLflow's default (a local SQLite mlflow.db)
     experiment: str = "sigmarl-ablation"
-    enabled: bool = True
+    enabled: bool = True  # false: the run folders are the only record
+    backend: str = "mlflow"  # or package.module:Class, a sigmarl.tracking.Tracker of your own
 
 
 @dataclass
@@ -257,6 +258,17 @@ def _known(values: Mapping[str, Any], schema: type) -> dict[str, Any]:
 def as_dict(node: Any) -> dict[str, Any]:
     """The plain-dict form of a config or of one of its groups (nested dicts and lists)."""
     return dataclasses.asdict(node)
+
+
+def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """{"ppo": {"lr": 2e-4}} -> {"ppo.lr": 2e-4}; lists stay one value."""
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, Mapping):
+            out.update(flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
 
 
 def to_yaml(cfg: Config) -> str:

@@ -30,21 +30,11 @@ _LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 
 def training_settings(cfg: Config) -> dict[str, Any]:
     """The flat training settings the fingerprint covers."""
-    from sigmarl.config import as_dict
+    from sigmarl.config import as_dict, flatten
 
     values = as_dict(cfg)
-    flat = _flatten({g: values[g] for g in TRAINING_GROUPS if g in values})
+    flat = flatten({g: values[g] for g in TRAINING_GROUPS if g in values})
     return {k: v for k, v in flat.items() if k not in NOT_TRAINING}
-
-
-def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(_flatten(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
 
 
 def fingerprint(cfg: Config) -> str:

@@ -117,7 +117,7 @@ def run_job(cfg: DictConfig | Config) -> str:
 
 def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
     from sigmarl.evaluation.protocol import checkpoint_name, evaluate_and_log
-    from sigmarl.tracking import connect, experiment_id, records
+    from sigmarl.tracking import open_tracker, records
     from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import train
 
@@ -127,18 +127,16 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
         use_threads(cfg.threads)  # training and this job's evaluation
         if cfg.study.checkpoints_from:  # a study that evaluates trained runs, not trains them
             return _evaluate_trained(cfg, run_dir)
-        result = train(cfg)
+        tracker = open_tracker(cfg)  # one connection for the job's training and evaluation
+        result = train(cfg, tracker)
         if not result.finished:
             return "interrupted"
-        if cfg.tracking.enabled and result.run_id:
-            client = connect(cfg)
-            exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
-            if done := records.finished_evaluation(client, exp_id, result.run_id, records.eval_key(cfg.eval)):
-                emit(f"{run_dir}: already evaluated")
-                write_atomic(run_dir / DONE_FILE, f"{done.info.run_id}\n")
-                return "done"
+        if result.run_id and (done := tracker.finished_evaluation(result.run_id, records.eval_key(cfg.eval))):
+            emit(f"{run_dir}: already evaluated")
+            write_atomic(run_dir / DONE_FILE, f"{done}\n")
+            return "done"
         path = run_dir / checkpoint_name(cfg.eval.checkpoint)
-        _, eval_run = evaluate_and_log(path, cfg, result.run_id, rows_file=run_dir / ROWS_FILE)
+        _, eval_run = evaluate_and_log(path, cfg, result.run_id, rows_file=run_dir / ROWS_FILE, tracker=tracker)
         write_atomic(run_dir / DONE_FILE, f"{eval_run or ''}\n")
         return "done"
     except BaseException as e:
@@ -467,12 +465,11 @@ def job_overrides(user_overrides: Sequence[str]) -> tuple[list[str], list[list[s
 
 
 def _prepare_store(plan: SweepPlan) -> None:
-    """Check the MLflow store and create the experiment, here, before any job starts."""
-    from sigmarl.tracking import connect, experiment_id
+    """Check the tracking store, here, before any job starts."""
+    from sigmarl.tracking import open_tracker
 
-    cfg = plan.config
-    if cfg is not None and cfg.tracking.enabled:
-        experiment_id(connect(cfg), cfg.tracking.experiment, create=True)
+    if plan.config is not None:
+        open_tracker(plan.config)
 
 
 def summarise(plan: SweepPlan) -> int:

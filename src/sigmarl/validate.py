@@ -84,6 +84,9 @@ def check(cfg: Config) -> Config:
     _check_ppo(cfg)
     check_eval(cfg.eval)
     _check_experiment(cfg.tracking.experiment)
+    from sigmarl.tracking.tracker import tracker_class
+
+    tracker_class(cfg.tracking.backend)  # a backend that cannot be imported ends here, not after training
     _check_study(cfg)
     return cfg
 

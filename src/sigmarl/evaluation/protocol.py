@@ -27,7 +27,7 @@ from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
 from sigmarl.run import ROWS_FILE, ROWS_META, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
-from sigmarl.tracking import connect, experiment_id, records
+from sigmarl.tracking import Tracker, open_tracker, records
 
 
 def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] | None = None,
@@ -121,8 +121,9 @@ def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) ->
 
 def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenarios=None,
                      progress: bool = True, rows_file: Path | None = None,
-                     ) -> tuple[pd.DataFrame, str | None]:
-    """Evaluate a checkpoint and record it in MLflow (unless tracking is off).
+                     tracker: Tracker | None = None) -> tuple[pd.DataFrame, str | None]:
+    """Evaluate a checkpoint and record it as an evaluation run in `tracker` (default: the one
+    `cfg` chooses; none with tracking off).
 
     The store is checked before evaluating; with `rows_file`, the rows are saved there
     before logging, and rows saved by an earlier attempt under the same protocol and
@@ -130,7 +131,7 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
     """
     from sigmarl.training import checkpoint as ckpt
 
-    client = connect(cfg) if cfg.tracking.enabled else None
+    tracker = tracker or open_tracker(cfg)  # the store is checked before evaluating
     identity = _identity(path, cfg) if rows_file is not None else {}
     rows = _saved_rows(rows_file, identity) if rows_file is not None else None
     if rows is not None:
@@ -141,10 +142,7 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
         rows, state = evaluate_checkpoint(path, cfg.eval, scenarios, device=cfg.device, progress=progress)
         if rows_file is not None:
             _save_rows(rows, rows_file, identity)
-    if client is None:
-        return rows, None
     crash.point("eval:rows")
-    exp_id = experiment_id(client, cfg.tracking.experiment, create=True)
     train_cfg = ckpt.config_of(state, path)
     tags = {
         "model": str(rows["model"].iloc[0]),
@@ -158,5 +156,5 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
     }
     params = {f"eval.{k}": str(v) for k, v in as_dict(cfg.eval).items()}
     params["checkpoint_iteration"] = str(state.get("iteration"))
-    run_id = records.log_evaluation(client, exp_id, rows, tags, params)
+    run_id = tracker.log_evaluation(rows, tags, params)
     return rows, run_id

@@ -1,5 +1,5 @@
 """`sigmarl report`: evaluation rows (from MLflow, or from a results folder with --from) ->
-tables, figures, and a report run in MLflow (unless tracking.enabled=false)."""
+tables, figures, and a report run in the tracker (none with tracking.enabled=false)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from sigmarl.report.build import Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_many, read_results
 from sigmarl.report.verdicts import design_of
 from sigmarl.scenarios import scenario, scenario_names
-from sigmarl.tracking import connect, records
+from sigmarl.tracking import connect, open_tracker, records
 
 
 def make_report(
@@ -29,15 +29,16 @@ def make_report(
     figures: bool = True,
     animation_steps: int = 0,
 ) -> Report:
-    """Build the report of experiment `cfg.tracking.experiment`; log it as a report run unless
-    tracking is off.
+    """Build the report of experiment `cfg.tracking.experiment` from its MLflow store; log it as
+    a report run to the tracker.
 
     With figures, also the maps of the table's scenarios; with animation_steps > 0, one GIF
     per scenario of M0 (its first seed's evaluated checkpoint) driving under the evaluation
     protocol.
     """
     experiment = cfg.tracking.experiment
-    client = connect(cfg, write=cfg.tracking.enabled)  # reads rows; logs only if enabled
+    tracker = open_tracker(cfg)  # checked before any work
+    client = connect(cfg, write=False)  # the rows are read from MLflow whichever tracker logs
     rows = records.load_evaluation_rows(client, experiment)
     curves = records.load_training_curves(client, experiment) if figures else None
     out_dir = out_dir or Path("reports") / experiment
@@ -45,10 +46,9 @@ def make_report(
                    figures=figures, animation_steps=animation_steps)
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
                     lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), **options)
-    if cfg.tracking.enabled:
-        records.log_report(client, experiment, report.composite, report.paths.values(), {
-            "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
-        })
+    tracker.log_report(report.composite, report.paths.values(), {
+        "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
+    })
     return report
 
 
@@ -68,7 +68,7 @@ def make_report_from_folder(
     folders, e.g. reused runs of another study), `sigmarl.report.folder`: no MLflow reads, no
     training.
 
-    Logged as a report run in experiment `cfg.tracking.experiment` unless tracking is off.
+    Logged as a report run to the tracker (experiment `cfg.tracking.experiment`).
     Default output: reports/<folder name> (several folders: reports/<study name>).
     """
     roots = [Path(r) for r in (root if isinstance(root, list) else [root])]
@@ -76,15 +76,14 @@ def make_report_from_folder(
     root = roots[0]
     out_dir = out_dir or Path("reports") / (root.resolve().name if len(roots) == 1 else cfg.study.name)
     curves = results.curves if len(results.curves) else None  # read anyway: training.md needs them
-    client = connect(cfg) if cfg.tracking.enabled else None  # checked before any work
+    tracker = open_tracker(cfg)  # checked before any work
     options = dict(models=models, trim=trim, compare_paper=compare_paper, latex=latex, ci=ci,
                    figures=figures, animation_steps=animation_steps)
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
                     extra_notes=results.notes, **options)
-    if client is not None:
-        records.log_report(client, cfg.tracking.experiment, report.composite, report.paths.values(),
-                           {"source": ",".join(str(r.resolve()) for r in roots)},
-                           source=",".join(str(r) for r in roots))
+    tracker.log_report(report.composite, report.paths.values(),
+                       {"source": ",".join(str(r.resolve()) for r in roots)},
+                       source=",".join(str(r) for r in roots))
     return report
 
 

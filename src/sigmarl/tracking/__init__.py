@@ -1,8 +1,10 @@
-"""Everything that talks to MLflow; no other package imports mlflow.
+"""Experiment tracking: where sigmarl records its runs; no other package imports mlflow.
 
-- `store`: connecting (fast failures, one clear line, a lock around a store's first use);
-- `training`: the training run (`Tracker`);
-- `records`: evaluation and report runs, and reading the study back for the report;
+- `tracker`: the seam. `open_tracker(cfg)` decides, in one place, which `Tracker` a command
+  records to (`NullTracker` with `tracking.enabled=false`, else `tracking.backend`);
+- `mlflow_tracker`: the MLflow tracker; `training`: its training runs;
+- `store`: connecting to MLflow (fast failures, one clear line, a lock around a store's first use);
+- `records`: MLflow's evaluation and report runs, and reading the study back for the report;
 - `meta`: flat params, git commit.
 
 MLflow's telemetry is switched off in `sigmarl/__init__.py`, before mlflow can be imported.
@@ -10,6 +12,7 @@ MLflow's telemetry is switched off in `sigmarl/__init__.py`, before mlflow can b
 
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import artifact_location, connect, experiment_id
-from sigmarl.tracking.training import Tracker
+from sigmarl.tracking.tracker import NullTracker, Tracker, TrainingRun, open_tracker
 
-__all__ = ["Tracker", "artifact_location", "connect", "experiment_id", "flatten", "git_commit"]
+__all__ = ["NullTracker", "Tracker", "TrainingRun", "artifact_location", "connect", "experiment_id",
+           "flatten", "git_commit", "open_tracker"]

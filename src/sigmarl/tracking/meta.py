@@ -6,17 +6,12 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from sigmarl.config import flatten as flat_dict
+
 
 def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
-    """{"ppo": {"lr": 2e-4}} -> {"ppo.lr": "0.0002"}; lists stay one value."""
-    out: dict[str, str] = {}
-    for k, v in d.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, Mapping):
-            out.update(flatten(v, f"{key}."))
-        else:
-            out[key] = str(v)
-    return out
+    """{"ppo": {"lr": 2e-4}} -> {"ppo.lr": "0.0002"} (params are text); lists stay one value."""
+    return {k: str(v) for k, v in flat_dict(d, prefix).items()}
 
 
 def git_commit(start: Path | None = None) -> str | None:

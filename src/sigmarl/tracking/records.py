@@ -15,7 +15,8 @@ import os
 import socket
 import tempfile
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -87,7 +88,7 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
     run = client.create_run(exp_id, run_name=f"eval-{tags.get('model', 'policy')}-seed{tags.get('seed', '')}",
                             tags={"kind": "evaluation", **tags, **parent})
     rid = run.info.run_id
-    try:
+    with _ended(client, rid):
         means = rows.groupby("scenario")[METRIC_COLUMNS].mean()
         now = int(time.time() * 1000)
         metrics = [Metric(f"{scenario}/{METRIC_NAMES.get(metric, metric)}", float(value) * METRIC_SCALE.get(metric, 1.0), now, 0)
@@ -98,10 +99,6 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
             path = Path(tmp) / ROWS_ARTIFACT
             rows.to_csv(path, index=False)
             client.log_artifact(rid, str(path))
-        client.set_terminated(rid, "FINISHED")
-    except BaseException as e:
-        _end(client, rid, e)
-        raise
     return rid
 
 
@@ -117,12 +114,19 @@ def _parent_tag(client, exp_id: str, train_run_id: str | None) -> dict[str, str]
     return {"mlflow.parentRunId": train_run_id} if same else {}
 
 
-def _end(client, rid: str, error: BaseException) -> None:
-    """KILLED for an interruption (Ctrl-C, SIGTERM), FAILED otherwise; never raises."""
+@contextmanager
+def _ended(client, rid: str) -> Iterator[None]:
+    """The run ends FINISHED after the block; KILLED if it was interrupted (Ctrl-C, SIGTERM),
+    FAILED if it failed (ending it never hides the error)."""
     try:
-        client.set_terminated(rid, "KILLED" if was_interrupted(error) else "FAILED")
-    except Exception:
-        pass
+        yield
+        client.set_terminated(rid, "FINISHED")
+    except BaseException as e:
+        try:
+            client.set_terminated(rid, "KILLED" if was_interrupted(e) else "FAILED")
+        except Exception:
+            pass
+        raise
 
 
 def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
@@ -222,16 +226,12 @@ def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable
     run = client.create_run(exp_id, run_name=f"report {source or experiment}",
                             tags={"kind": "report", **owner, **tags})
     rid = run.info.run_id
-    try:
+    with _ended(client, rid):
         for _, r in composite.dropna(subset=["CS"]).iterrows():
             client.log_metric(rid, f"CS/{r['scenario']}/{r['model']}", float(r["CS"]))
         crash.point("report:logging")
         for path in paths:
             client.log_artifact(rid, str(path))
-        client.set_terminated(rid, "FINISHED")
-    except BaseException as e:
-        _end(client, rid, e)
-        raise
     return rid
 
 

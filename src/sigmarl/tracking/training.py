@@ -20,7 +20,8 @@ from sigmarl.config import Config, as_dict
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.run import REWARD
 from sigmarl.tracking.meta import flatten, git_commit
-from sigmarl.tracking.store import connect, experiment_id
+from sigmarl.tracking.store import experiment_id
+from sigmarl.tracking.tracker import TrainingRun
 
 # the metric whose history tells which iterations a training run already holds
 STEP_MARKER = REWARD
@@ -38,29 +39,18 @@ def _has_run(client: Any, run_id: str) -> bool:
     return True
 
 
-class Tracker:
-    """An MLflow training run; `Tracker.disabled()` gives one that records nothing."""
+class MlflowTrainingRun(TrainingRun):
+    """A training run in MLflow; a store that fails while training runs only warns."""
 
-    def __init__(self, client: Any = None, run_id: str | None = None) -> None:
+    def __init__(self, client: Any, run_id: str) -> None:
         self.client = client
         self.run_id = run_id
         self._warned = False
 
     @classmethod
-    def disabled(cls) -> Tracker:
-        return cls()
-
-    @property
-    def enabled(self) -> bool:
-        return self.client is not None
-
-    @classmethod
-    def open(cls, cfg: Config, run_id: str | None = None, reopen: bool = True) -> Tracker:
-        """Connect, then create the run, or attach to `run_id` (and mark it RUNNING again
-        with `reopen`, for a resume). Fails before training."""
-        if not cfg.tracking.enabled:
-            return cls.disabled()
-        client = connect(cfg)
+    def open(cls, cfg: Config, client: Any, run_id: str | None = None, reopen: bool = True) -> MlflowTrainingRun:
+        """Create the run, or attach to `run_id` (and mark it RUNNING again with `reopen`, for a
+        resume)."""
         try:
             if run_id is not None and not _has_run(client, run_id):
                 # The run folder came from another machine or store (a committed study, a
@@ -103,9 +93,7 @@ class Tracker:
         return tracker
 
     def _guard(self, method: str, *args: Any, **kwargs: Any) -> Any:
-        """Call client.<method>(run_id, ...) if tracking; a failing store only warns."""
-        if not self.enabled:
-            return None
+        """Call client.<method>(run_id, ...); a failing store only warns."""
         try:
             return getattr(self.client, method)(self.run_id, *args, **kwargs)
         except Exception as e:  # keep training; the run folder is the primary record
@@ -131,7 +119,7 @@ class Tracker:
     def log_metrics(self, rows: Sequence[tuple[int, Mapping[str, float]]]) -> None:
         """Metrics of several iterations: [(step, {name: value}), ...]; whole iterations per
         batch, so a batch that fails leaves no iteration half logged."""
-        if not self.enabled or not rows:
+        if not rows:
             return
         from mlflow.entities import Metric
 
@@ -147,13 +135,13 @@ class Tracker:
 
     def logged_steps(self) -> set[int]:
         """The iterations whose metrics the run holds."""
-        history = self._guard("get_metric_history", STEP_MARKER) if self.enabled else None
+        history = self._guard("get_metric_history", STEP_MARKER)
         return {m.step for m in history or []}
 
     def sync_metrics(self, rows: Sequence[tuple[int, Mapping[str, float]]]) -> None:
         """Log the iterations of `rows` that the run lacks (e.g. after a kill between a
         checkpoint and its metrics reaching MLflow); never one twice."""
-        if not self.enabled or not rows:
+        if not rows:
             return
         have = self.logged_steps()
         self.log_metrics([(step, row) for step, row in rows if step not in have])
@@ -163,16 +151,12 @@ class Tracker:
 
     def log_missing_artifacts(self, paths: Sequence[Path]) -> None:
         """Log those of `paths` that the run does not hold yet."""
-        if not self.enabled:
-            return
         have = {a.path for a in self._guard("list_artifacts") or []}
         for path in paths:
             if path.name not in have:
                 self.log_artifact(path)
 
     def status(self) -> str | None:
-        if not self.enabled:
-            return None
         run = self._guard("get_run")
         return None if run is None else run.info.status
 

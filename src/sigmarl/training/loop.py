@@ -23,7 +23,7 @@ from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.paths import ensure_writable
 from sigmarl.progress import Progress
 from sigmarl.run import CONFIG_FILE, REWARD, RUN_ID_FILE, Run, write_atomic
-from sigmarl.tracking import Tracker, flatten
+from sigmarl.tracking import Tracker, TrainingRun, flatten, open_tracker
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
 from sigmarl.training.mappo import (
@@ -193,36 +193,37 @@ def build(cfg: Config, device: torch.device) -> Parts:
                  optimiser, dims, collector)
 
 
-def train(cfg: Config) -> TrainResult:
+def train(cfg: Config, tracker: Tracker | None = None) -> TrainResult:
     """Train (or resume, or complete) the run of `cfg` in its run folder, which this process
-    holds for the whole time (a second process is refused in one line)."""
+    holds for the whole time (a second process is refused in one line). Recorded to `tracker`
+    (default: the one `cfg` chooses)."""
     check(cfg)  # a no-op for a composed config; a Config built in code is checked too
     run_dir = Path(cfg.run_dir)
     ensure_writable(run_dir.parent, "choose another run_dir=...")
     with Run(run_dir).lock():
-        return _train(cfg, run_dir)
+        return _train(cfg, run_dir, tracker)
 
 
-def _train(cfg: Config, run_dir: Path) -> TrainResult:
+def _train(cfg: Config, run_dir: Path, tracker: Tracker | None) -> TrainResult:
     resolved = resolved_settings(cfg)
     torch.set_num_threads(cfg.threads)
     device = _device(cfg.device)
     state = _resume_point(cfg, run_dir, device)
     ensure_writable(run_dir, "choose another run_dir=...")
     if state and state["iteration"] >= cfg.ppo.iterations:
-        return _complete(cfg, run_dir, state)
+        return _complete(cfg, run_dir, state, tracker)
 
     start = state["iteration"] if state else 0
     best = state.get("best_reward") if state else None
-    tracker = _open_tracker(cfg, run_dir, state)  # the store is checked before any work
-    tracker.set_tags({f"resolved.{k}": str(v) for k, v in resolved.items()})  # what actually ran
-    run_id = tracker.run_id if tracker.enabled else (state or {}).get("mlflow_run_id")
+    record = _open_record(tracker or open_tracker(cfg), run_dir, state)  # the store is checked before any work
+    record.set_tags({f"resolved.{k}": str(v) for k, v in resolved.items()})  # what actually ran
+    run_id = record.run_id
     try:
         parts = build(cfg, device)
         if state:
             _load_state(parts, state, run_dir / ckpt.RESUME_FILE)
     except BaseException as e:
-        _finish_and_raise(tracker, e)
+        _finish_and_raise(record, e)
     actor, critic, optimiser = parts.actor, parts.critic, parts.optimiser
 
     def snapshot(iteration: int, reward: float | None) -> dict[str, Any]:
@@ -251,11 +252,11 @@ def _train(cfg: Config, run_dir: Path) -> TrainResult:
     try:
         if state:
             # the rows after the resume point are computed again; MLflow gets what it missed
-            tracker.sync_metrics(metrics_file.truncate(metrics_path, start))
+            record.sync_metrics(metrics_file.truncate(metrics_path, start))
         else:
             write_atomic(run_dir / CONFIG_FILE, to_yaml(cfg))
             metrics_path.unlink(missing_ok=True)
-            tracker.log_artifact(run_dir / CONFIG_FILE)
+            record.log_artifact(run_dir / CONFIG_FILE)
             crash.point("train:start")
             # a resume point before the first iteration: a kill at any later instant resumes
             ckpt.save_atomic(snapshot(0, None), run_dir / ckpt.RESUME_FILE)
@@ -297,22 +298,22 @@ def _train(cfg: Config, run_dir: Path) -> TrainResult:
                 crash.point(f"train:checkpoint:{done_its}")
                 # metrics go out after their checkpoint; a kill in between is made good
                 # from metrics.csv on the next resume, so no iteration is lost or doubled
-                tracker.log_metrics(pending)
+                record.log_metrics(pending)
                 pending = []
             if done_its == ppo.iterations:
                 ckpt.save_atomic(ckpt.policy_only(snapshot(done_its, reward)), run_dir / ckpt.FINAL_FILE)
                 crash.point("train:final")
             bar.update(1, reward=f"{reward:.3f}", fps=f"{metrics['frames_per_s']:.0f}")
         if stop == ppo.iterations:
-            _complete_record(tracker, run_dir, stop)
+            _complete_record(record, run_dir, stop)
     except BaseException as e:  # Ctrl-C, or SIGTERM through the CLI's handler, or a failure
-        _finish_and_raise(tracker, e)
+        _finish_and_raise(record, e)
     finally:
         bar.close()
         parts.close()
     finished = stop == ppo.iterations
     if not finished:
-        tracker.finish("KILLED")  # ppo.stop_after: stopped on purpose, resumable
+        record.finish("KILLED")  # ppo.stop_after: stopped on purpose, resumable
     return TrainResult(run_dir, stop, finished, best, run_id, history)
 
 
@@ -329,54 +330,53 @@ def _load_state(parts: Parts, state: dict[str, Any], path: Path) -> None:
     ckpt.set_rng_state(state["rng"])
 
 
-def _finish_and_raise(tracker: Tracker, error: BaseException) -> NoReturn:
+def _finish_and_raise(record: TrainingRun, error: BaseException) -> NoReturn:
     """End the run KILLED (interrupted: resumable) or FAILED, and re-raise; an interruption
     that a library turned into its own error is raised as the interruption it was."""
     if not was_interrupted(error):
-        tracker.finish("FAILED")
+        record.finish("FAILED")
         raise error
-    tracker.finish("KILLED")
+    record.finish("KILLED")
     if isinstance(error, KeyboardInterrupt):
         raise error
     raise Terminated() from error
 
 
-def _open_tracker(cfg: Config, run_dir: Path, state: dict[str, Any] | None) -> Tracker:
-    """Reopen the resumed run, or create one; a run left by a start that was killed before
-    its first checkpoint is deleted (it holds nothing the new one will not)."""
+def _open_record(tracker: Tracker, run_dir: Path, state: dict[str, Any] | None) -> TrainingRun:
+    """Reopen the resumed run's record, or create one; a record left by a start that was killed
+    before its first checkpoint is deleted (it holds nothing the new one will not)."""
     old = (state or {}).get("mlflow_run_id")
-    tracker = Tracker.open(cfg, old if cfg.tracking.enabled else None)
+    record = tracker.training_run(old)
     id_file = run_dir / RUN_ID_FILE
-    if tracker.enabled and not state and id_file.exists():
-        Tracker(tracker.client, id_file.read_text().strip()).discard()
-    if tracker.enabled and tracker.run_id != old:
-        write_atomic(id_file, f"{tracker.run_id}\n")
-    return tracker
+    if not state and id_file.exists():
+        tracker.discard_training_run(id_file.read_text().strip())
+    if record.run_id != old:
+        write_atomic(id_file, f"{record.run_id}\n")
+    return record
 
 
-def _complete_record(tracker: Tracker, run_dir: Path, iterations: int) -> None:
-    """Bring the finished run's MLflow record up to date (metrics, checkpoints, config)."""
-    tracker.sync_metrics(metrics_file.read(run_dir / METRICS_FILE, iterations))
-    tracker.log_missing_artifacts([run_dir / CONFIG_FILE, run_dir / ckpt.BEST_FILE,
-                                   run_dir / ckpt.FINAL_FILE])
-    tracker.finish("FINISHED")
+def _complete_record(record: TrainingRun, run_dir: Path, iterations: int) -> None:
+    """Bring the finished run's tracked record up to date (metrics, checkpoints, config)."""
+    record.sync_metrics(metrics_file.read(run_dir / METRICS_FILE, iterations))
+    record.log_missing_artifacts([run_dir / CONFIG_FILE, run_dir / ckpt.BEST_FILE,
+                                  run_dir / ckpt.FINAL_FILE])
+    record.finish("FINISHED")
 
 
-def _complete(cfg: Config, run_dir: Path, state: dict[str, Any]) -> TrainResult:
+def _complete(cfg: Config, run_dir: Path, state: dict[str, Any], tracker: Tracker | None) -> TrainResult:
     """A re-run of a finished training: finish what a kill after the last iteration left
     undone (final.pt, the MLflow record), then report it finished."""
     iterations = state["iteration"]
     if not (run_dir / ckpt.FINAL_FILE).exists():  # the last checkpoint holds the final weights
         ckpt.save_atomic(ckpt.policy_only(state), run_dir / ckpt.FINAL_FILE)
     run_id = state.get("mlflow_run_id")
-    if cfg.tracking.enabled:
-        tracker = Tracker.open(cfg, run_id, reopen=False)
-        if tracker.run_id != run_id:  # a store that had no record of it (see Tracker.open)
-            run_id = tracker.run_id
-            write_atomic(run_dir / RUN_ID_FILE, f"{run_id}\n")
-        if tracker.status() != "FINISHED":
-            print(f"{run_dir}: completing the MLflow record of the finished training")
-            _complete_record(tracker, run_dir, iterations)
+    record = (tracker or open_tracker(cfg)).training_run(run_id, reopen=False)
+    if record.run_id != run_id:  # a store that had no record of it (see MlflowTrainingRun.open)
+        run_id = record.run_id
+        write_atomic(run_dir / RUN_ID_FILE, f"{run_id}\n")
+    if record.status() not in (None, "FINISHED"):
+        print(f"{run_dir}: completing the tracker's record of the finished training")
+        _complete_record(record, run_dir, iterations)
     print(f"{run_dir}: training already finished ({iterations} iterations)")
     return TrainResult(run_dir, iterations, True, state.get("best_reward"), run_id)
 
