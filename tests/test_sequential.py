@@ -127,6 +127,23 @@ def test_next_round_adds_seeds_to_undecided_variants_and_the_baseline():
     assert dict(zip(second.verdicts["variant"], second.verdicts["verdict"], strict=True))["M1"] == "worse"
 
 
+def test_next_round_adds_a_seed_to_each_undecided_variants_own_baseline():
+    """With its own baselines (M4 against M0, M4-paper against M0-paper), an undecided variant
+    brings its own baseline along, and only that one."""
+    rng = np.random.default_rng(5)
+    noise = {m: rng.poisson(5, (3, 8)) / STEPS for m in ("M0", "M4", "M0-paper")}
+    values = {**noise, "M4-paper": noise["M0-paper"] + 0.2}  # decided: worse in every seed
+    design = Design(variants=["M0-paper", "M4-paper", "M0", "M4"], baseline="M0-paper",
+                    baselines={"M4": "M0"}, max_seeds=MAX_SEEDS)
+    r = next_round(_rows(values), design, N_START)
+    verdicts = dict(zip(r.verdicts["variant"], r.verdicts["verdict"], strict=True))
+    assert verdicts["M4-paper"] == "worse"
+    assert verdicts["M4"] == "undecided" and verdicts["M0"] == "undecided"
+    # M0 (undecided against M0-paper) and M4 (against M0) add a seed; M0-paper keeps pace with M0
+    assert r.add == {"M0": 1, "M4": 1, "M0-paper": 1}
+    assert any(line.startswith("M4 vs M0, CPM, CR_total") or line.startswith("M4:") for line in r.reasons)
+
+
 def test_next_round_stops_at_the_cap():
     rng = np.random.default_rng(4)
     values = {"M0": rng.poisson(5, (3, 8)) / STEPS, "M2": rng.poisson(5, (3, 8)) / STEPS}

@@ -162,3 +162,35 @@ def test_design_rejects_unknown_metrics():
         Design(variants=["M0"], metrics=("speed",))
     with pytest.raises(SigmarlError, match="no equivalence margin"):
         Design(variants=["M0"], metrics=("CD",), margins={"CR_total": 0.1})
+
+
+def test_each_variant_against_its_own_baseline():
+    """A 2 x 2 factorial (rules x strategy): M4-paper against M0-paper and M4 against M0, while
+    M0 itself is compared with M0-paper; each difference against scipy's Welch test of the
+    pair's own seed means, Holm over the three."""
+    seeds = {
+        "M0-paper": [[2.0, 2.2], [2.4, 2.2], [2.1, 2.1]],
+        "M4-paper": [[3.0, 3.2], [3.1, 3.3], [2.9, 3.1]],
+        "M0": [[1.0, 1.2], [1.1, 1.3], [1.0, 1.2]],
+        "M4": [[0.6, 0.8], [0.7, 0.5], [0.6, 0.6]],
+    }
+    rows = _rows({(m, "A"): v for m, v in seeds.items()})
+    design = Design(variants=list(seeds), baseline="M0-paper", baselines={"M4": "M0"},
+                    metrics=("CR_total",), margins={"CR_total": 0.1})
+    table = verdict_table(rows, design)
+    assert list(zip(table["variant"], table["baseline"], strict=True)) == [
+        ("M4-paper", "M0-paper"), ("M0", "M0-paper"), ("M4", "M0")]
+    means = {m: np.array([np.mean(s) for s in v]) for m, v in seeds.items()}
+    for _, r in table.iterrows():
+        a, b = means[r["variant"]], means[r["baseline"]]
+        assert r["difference"] == pytest.approx(a.mean() - b.mean())
+        assert r["p_difference"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue, rel=1e-6)
+    assert table["p_difference_holm"].to_numpy() == pytest.approx(holm(table["p_difference"].to_numpy()))
+    assert list(table["verdict"]) == ["worse", "better", "better"]
+    text = verdicts_markdown(table, design)
+    assert text.startswith("Verdicts against each model's baseline")
+    assert "| A | CR_total (%) | M4 vs M0 | 3/3 |" in text
+    # one baseline for all: the table reads as before
+    single = verdicts_markdown(verdict_table(rows, Design(variants=list(seeds), baseline="M0-paper")),
+                               Design(variants=list(seeds), baseline="M0-paper"))
+    assert single.startswith("Verdicts against M0-paper") and "| A | CR_total (%) | M4 | 3/3 |" in single

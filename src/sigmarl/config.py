@@ -148,6 +148,9 @@ class StudyConfig:
     # run folders (<runs_root>/<label>/seed<k>) and the table's column
     variants: dict[str, list[str]] = field(default_factory=dict)
     baseline: str = "M0"  # what every other variant is compared with
+    # variant -> its own baseline, where it is not `baseline` (e.g. a factorial study compares
+    # within each level of the other factor: {M4-paper: M0-paper, M4: M0})
+    baselines: dict[str, str] = field(default_factory=dict)
     seeds: list[int] = field(default_factory=lambda: [0])
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
     metrics: list[str] = field(default_factory=lambda: ["CR_total"])  # the metrics decided on

@@ -105,6 +105,13 @@ def _check_study(cfg: Config) -> None:
     if study.variants and study.baseline not in study.variants:
         raise SigmarlError(f"study.baseline {study.baseline!r} is not one of the study's variants "
                            f"({', '.join(study.variants)})")
+    for variant, base in study.baselines.items():
+        for key, label in (("", variant), (".value", base)):
+            if study.variants and label not in study.variants:
+                raise SigmarlError(f"study.baselines{key and '.' + variant}: {label!r} is not one of the study's "
+                                   f"variants ({', '.join(study.variants)})")
+        if variant == base:
+            raise SigmarlError(f"study.baselines.{variant}: a variant cannot be its own baseline")
     if any(s < 0 or s > SEED_MAX for s in study.seeds):
         raise SigmarlError(f"study.seeds must be in 0..{SEED_MAX}, got {study.seeds}")
     for name in [*study.metrics, *study.margins]:

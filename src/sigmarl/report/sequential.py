@@ -200,7 +200,7 @@ def next_round(
     seeds = rows.groupby("model")["seed"].nunique().to_dict()
     add: dict[str, int] = {}
     for k, c, v, t, p in zip(keys, comps, verdicts, tests, previous_list(previous, keys), strict=True):
-        where = f"{c.variant} vs {design.baseline}, {c.scenario}, {c.metric}"
+        where = f"{c.variant} vs {design.baseline_of(c.variant)}, {c.scenario}, {c.metric}"
         if p:
             continue
         if v != "undecided":
@@ -214,10 +214,13 @@ def next_round(
     for variant in list(add):
         reasons.append(f"{variant}: one more seed ({seeds.get(variant, 0) + 1}), for its undecided "
                        f"comparison(s): {', '.join(c.scenario + '/' + c.metric for c, v in zip(comps, verdicts, strict=True) if c.variant == variant and v == 'undecided')}")
-    if add and seeds.get(design.baseline, 0) <= max(seeds.get(v, 0) for v in add) < design.max_seeds:
-        add[design.baseline] = 1
-        reasons.append(f"{design.baseline}: one more seed ({seeds.get(design.baseline, 0) + 1}), as the baseline "
-                       "of the undecided comparisons")
+    for base in dict.fromkeys(design.baseline_of(v) for v in list(add)):
+        # a baseline keeps pace with the variants compared with it
+        if base not in add and seeds.get(base, 0) <= max(seeds.get(v, 0) for v in add
+                                                          if design.baseline_of(v) == base) < design.max_seeds:
+            add[base] = 1
+            reasons.append(f"{base}: one more seed ({seeds.get(base, 0) + 1}), as the baseline "
+                           "of the undecided comparisons")
     return Round(frame, add, reasons, done=not add)
 
 

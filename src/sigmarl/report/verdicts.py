@@ -61,6 +61,9 @@ class Design:
 
     variants: Sequence[str]  # ordered; the baseline may be among them
     baseline: str = "M0"
+    # variant -> the variant it is compared with instead of `baseline` (a factorial study
+    # compares within each level of the other factor, e.g. M4-paper with M0-paper, M4 with M0)
+    baselines: dict[str, str] = field(default_factory=dict)
     scenarios: Sequence[str] | None = None  # None: every scenario in the rows, in order
     metrics: Sequence[str] = ("CR_total",)
     margins: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_MARGINS))
@@ -78,18 +81,26 @@ class Design:
         if not 0 < self.alpha < 1 or not 0 < self.power < 1:
             raise SigmarlError(f"alpha and power must lie in (0, 1), got {self.alpha} and {self.power}")
 
+    def baseline_of(self, variant: str) -> str:
+        return self.baselines.get(variant, self.baseline)
+
     @property
     def compared(self) -> list[str]:
-        return [v for v in self.variants if v != self.baseline]
+        return [v for v in self.variants if v != self.baseline and self.baseline_of(v) != v]
+
+    @property
+    def one_baseline(self) -> bool:
+        return all(self.baseline_of(v) == self.baseline for v in self.compared)
 
 
 def design_of(study, variants: Sequence[str]) -> Design:
     """The verdicts' parameters of a study config (`sigmarl.config.StudyConfig`) for the table's
     columns `variants`: its baseline (or M0, or the first column, when the baseline is absent),
-    metrics, margins (over the metrics' own defaults) and seed cap."""
+    the variants' own baselines, metrics, margins (over the metrics' own defaults) and seed cap."""
     variants = list(variants)
     baseline = study.baseline if study.baseline in variants else ("M0" if "M0" in variants else variants[0])
-    return Design(variants=variants, baseline=baseline, metrics=tuple(study.metrics),
+    own = {v: b for v, b in dict(study.baselines).items() if v in variants}
+    return Design(variants=variants, baseline=baseline, baselines=own, metrics=tuple(study.metrics),
                   margins={**DEFAULT_MARGINS, **dict(study.margins)}, max_seeds=int(study.max_seeds))
 
 
@@ -178,12 +189,10 @@ def comparisons(rows: pd.DataFrame, design: Design) -> list[Comparison]:
     for metric in design.metrics:
         values = seed_values(rows, metric)
         for scenario in scenarios:
-            base = values.get((design.baseline, scenario))
-            if not base:
-                continue
             for variant in design.compared:
+                base = values.get((design.baseline_of(variant), scenario))
                 mine = values.get((variant, scenario))
-                if not mine:
+                if not base or not mine:
                     continue
                 test = welch(np.array([g.mean() for g in mine]), np.array([g.mean() for g in base]),
                              design.margins[metric])
@@ -248,7 +257,7 @@ def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
                                   design.power)
         unadjusted, _ = plan_seeds(c, margin, design.alpha, design.alpha, design.power)
         records.append({
-            "scenario": c.scenario, "metric": c.metric, "variant": c.variant, "baseline": design.baseline,
+            "scenario": c.scenario, "metric": c.metric, "variant": c.variant, "baseline": design.baseline_of(c.variant),
             "n_variant": c.test.n_variant, "n_baseline": c.test.n_baseline,
             "variant_mean": c.test.variant_mean, "baseline_mean": c.test.baseline_mean,
             "difference": c.test.difference, "ci_low": lo, "ci_high": hi, "margin": margin,
@@ -293,8 +302,9 @@ def _needed(n) -> str:
 def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
     """The verdict table as Markdown, with the rules it applied in its notes."""
     m = len(table)
+    against = design.baseline if design.one_baseline else "each model's baseline"
     lines = [
-        f"Verdicts against {design.baseline} (seed means compared; {m} comparisons, Holm-corrected; "
+        f"Verdicts against {against} (seed means compared; {m} comparisons, Holm-corrected; "
         f"α = {design.alpha:g}):",
         "",
         "| Scenario | Metric | Model | seeds | difference [95% CI] | p (Holm) | p equiv. (Holm) | verdict "
@@ -307,8 +317,9 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
         unit = METRICS[r["metric"]][2]
         undecided = r["verdict"] == "undecided"
         needed = f"{_needed(r['seeds_needed'])} ({_needed(r['seeds_needed_unadjusted'])})" if undecided else "–"
+        model = r["variant"] if design.one_baseline else f"{r['variant']} vs {r['baseline']}"
         lines.append(
-            f"| {r['scenario']} | {r['metric']} ({unit}) | {r['variant']} | {r['n_variant']}/{r['n_baseline']} | "
+            f"| {r['scenario']} | {r['metric']} ({unit}) | {model} | {r['n_variant']}/{r['n_baseline']} | "
             f"{_signed(r['difference'])} [{_signed(r['ci_low'])}, {_signed(r['ci_high'])}] | {_p(r['p_difference'])} "
             f"({_p(r['p_difference_holm'])}) | {_p(r['p_equivalence'])} ({_p(r['p_equivalence_holm'])}) | "
             f"{verdict_label(r)} | {needed} |"
@@ -316,7 +327,7 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
     margins = ", ".join(f"{k} ±{design.margins[k]:g} {margin_unit(k)}" for k in design.metrics)
     lines += [
         "",
-        f"seeds: the model's / {design.baseline}'s. difference: model minus {design.baseline}, in the table's "
+        f"seeds: the model's / {against}'s. difference: model minus {against}, in the table's "
         "units (pp: percentage points), with Welch's t-interval over seed means. better / worse: Welch's two-sided test, Holm-adjusted "
         f"p ≤ α; equivalent: two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; "
         "otherwise undecided. seeds needed: seeds per model (and per baseline) for power "
