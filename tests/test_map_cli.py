@@ -77,3 +77,23 @@ def test_missing_packaged_map_exits_2(capsys):
     assert rc == 2
     assert "map.path=package:maps/nope.osm: no such file in the sigmarl package" in capsys.readouterr().err
 
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in (Path(__file__).parents[1] / "conf" / "map").glob("*.yaml")
+                                        if p.stem != "osm"))
+def test_list_reads_each_map_file_as_composition_would(name):
+    """`maps list` reads each conf/map file on its own (no Hydra composition per map): the same
+    map config that `map=<name>` composes."""
+    from sigmarl.compose import compose_config, map_config
+
+    assert map_config(name) == compose_config([f"map={name}"]).map
+
+
+def test_list_into_a_closed_pipe_is_quiet(tmp_path):
+    import subprocess
+    import sys
+
+    done = subprocess.run(f"{sys.executable} -m sigmarl maps list | head -n 1", shell=True, cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+    assert done.stdout.split() == ["map", "lanelets", "routes", "size", "(m)", "lane", "width"]
+    assert done.stderr == ""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import os
 import signal
 import sys
 import threading
@@ -26,18 +27,21 @@ def handle_sigterm() -> None:
 
 
 def _map_names() -> list[str]:
-    from sigmarl.paths import conf_dir
+    from sigmarl.paths import config_files
 
-    return sorted(p.stem for p in (conf_dir() / "map").glob("*.yaml"))
+    return sorted(config_files("map"))  # the package's and those of a --config-dir
 
 
 def _resolve_map(name: str, overrides: Sequence[str]):
     """A map by config name (conf/map/<name>.yaml) or by OSM file path."""
-    from sigmarl.compose import compose_config
+    from sigmarl.compose import compose_config, map_config
     from sigmarl.maps import load_map
+    from sigmarl.validate import check_map
 
     if name.endswith(".osm") or Path(name).suffix == ".osm":
         cfg = compose_config(["map=osm", f"map.path={Path(name).resolve()}", *overrides])
+    elif name in _map_names() and not overrides:  # its file alone: no composition (~1 s each)
+        return load_map(check_map(map_config(name)))
     elif name in _map_names():
         cfg = compose_config([f"map={name}", *overrides])
     else:
@@ -292,6 +296,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SigmarlError as e:
         print(f"sigmarl: error: {e}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `sigmarl maps list | head`: the reader left; nothing to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 1
     except BaseException as e:
         if (full := _disk_full(e)) is not None:
             print(f"sigmarl: error: {full}", file=sys.stderr)

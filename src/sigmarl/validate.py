@@ -14,7 +14,7 @@ from __future__ import annotations
 from typing import Literal, get_args
 
 from sigmarl.ablation import check_eval
-from sigmarl.config import Config
+from sigmarl.config import Config, MapConfig
 from sigmarl.errors import SigmarlError
 
 MapKind = Literal["cpm", "intersection", "on_ramp", "roundabout", "osm"]
@@ -124,7 +124,11 @@ def _check_study(cfg: Config) -> None:
 
 
 def _check_map(cfg: Config) -> None:
-    m = cfg.map
+    check_map(cfg.map)
+
+
+def check_map(m: MapConfig) -> MapConfig:
+    """`m` if its values are usable (a map config read on its own, e.g. by `sigmarl maps list`)."""
     kind = choice("map.kind", m.kind, MapKind)
     if kind == "cpm":
         choice("map.route_set", m.route_set, RouteSet)
@@ -132,6 +136,7 @@ def _check_map(cfg: Config) -> None:
         raise SigmarlError("map.kind=osm needs map.path=<file.osm>")
     if m.lane_width <= 0:
         raise SigmarlError(f"map.lane_width must be positive, got {m.lane_width}")
+    return m
 
 
 def _check_ppo(cfg: Config) -> None:
