@@ -230,7 +230,7 @@ def test_sigterm_ends_the_training_run_killed(tmp_path: Path) -> None:
 def _cli_signal_handlers(sigint=None):
     """The CLI's handlers for the test's duration (SIGINT first set to `sigint` if given)."""
     from sigmarl import errors
-    from sigmarl.cli import handle_sigterm
+    from sigmarl.errors import handle_sigterm
 
     previous = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
     terminating = errors._terminating

@@ -127,7 +127,7 @@ def test_a_sigterm_inside_a_store_call_is_raised_when_the_call_has_ended(
     from mlflow.entities import Metric
 
     from sigmarl import errors
-    from sigmarl.cli import handle_sigterm
+    from sigmarl.errors import handle_sigterm
 
     monkeypatch.setattr(errors, "_terminating", False)
     previous = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)

@@ -97,9 +97,9 @@ def _load(path: Path, identity: dict) -> dict | None:
 
 def _rows(plan) -> pd.DataFrame:
     """The evaluation rows of the plan's run folders, checked as `report --from` checks them."""
-    from sigmarl.report.folder import RunFolder, _rows_of
+    from sigmarl.report.folder import RunFolder, rows_of
 
-    frames = [_rows_of(RunFolder(j.label, j.seed, Path(j.run_dir))) for j in plan.jobs
+    frames = [rows_of(RunFolder(j.label, j.seed, Path(j.run_dir))) for j in plan.jobs
               if (Path(j.run_dir) / ROWS_FILE).is_file()]
     return pd.concat(frames, ignore_index=True)
 

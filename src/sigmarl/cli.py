@@ -7,23 +7,12 @@ import errno
 import os
 import signal
 import sys
-import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from sigmarl.errors import SigmarlError, Terminated, on_signal, was_interrupted
+from sigmarl.errors import SigmarlError, Terminated, handle_sigterm, was_interrupted
 from sigmarl.paths import add_user_conf_dir
 from sigmarl.resources import use_threads
-
-
-def handle_sigterm() -> None:
-    """Turn SIGTERM into `Terminated` (a KeyboardInterrupt) in this process's main thread, and
-    let both it and Ctrl-C wait for the end of a `held_signals` block. SIGINT is taken over
-    only from Python's default handler: a job started with it ignored (`cmd &`) keeps it so."""
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, on_signal)
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            signal.signal(signal.SIGINT, on_signal)
 
 
 def _map_names() -> list[str]:
@@ -108,6 +97,12 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
+    """A sweep; with `seeds=auto`, in rounds that add seeds where they decide (`sigmarl.adaptive`)."""
+    rest = [o for o in args.overrides if o.replace(" ", "") != "seeds=auto"]
+    if len(rest) < len(args.overrides):
+        from sigmarl.adaptive import run_auto
+
+        return run_auto(rest)
     from sigmarl.sweep import run_sweep
 
     return run_sweep(args.overrides)

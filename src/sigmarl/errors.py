@@ -84,3 +84,13 @@ def was_interrupted(error: BaseException) -> bool:
         seen.add(id(e))
         todo += [e.__cause__, e.__context__]
     return False
+
+
+def handle_sigterm() -> None:
+    """Turn SIGTERM into `Terminated` (a KeyboardInterrupt) in this process's main thread, and
+    let both it and Ctrl-C wait for the end of a `held_signals` block. SIGINT is taken over
+    only from Python's default handler: a job started with it ignored (`cmd &`) keeps it so."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, on_signal)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, on_signal)

@@ -94,7 +94,7 @@ def run_job(cfg: DictConfig | Config) -> str:
     `evaluation_rows.csv` if it was killed after evaluating, and is skipped once MLflow
     holds a finished evaluation run under the same protocol.
     """
-    from sigmarl.cli import handle_sigterm
+    from sigmarl.errors import handle_sigterm
 
     handle_sigterm()  # in a launcher's worker process, SIGTERM must end runs as KILLED too
     enter_sweep_folder()
@@ -408,13 +408,7 @@ def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
 
 
 def run_sweep(user_overrides: Sequence[str]) -> int:
-    """Plan, then run the multirun in this process (Hydra's entry point), then summarise;
-    with `seeds=auto`, in rounds (`sigmarl.adaptive`)."""
-    rest = [o for o in user_overrides if o.replace(" ", "") != "seeds=auto"]
-    if len(rest) < len(user_overrides):
-        from sigmarl.adaptive import run_auto
-
-        return run_auto(rest)
+    """Plan, then run the multirun in this process (Hydra's entry point), then summarise."""
     return launch(plan_sweep(user_overrides))
 
 

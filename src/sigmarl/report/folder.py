@@ -112,7 +112,7 @@ def check_rows(rows: pd.DataFrame, path: Path) -> pd.DataFrame:
     return rows
 
 
-def _rows_of(run: RunFolder) -> pd.DataFrame:
+def rows_of(run: RunFolder) -> pd.DataFrame:
     """The run's evaluation rows, checked (`check_rows`), and its model and seed checked
     against the folder's names."""
     path = run.path / ROWS_FILE
@@ -176,7 +176,7 @@ def read_results(root: Path) -> FolderResults:
             notes.append(f"{run.path}: evaluated under the environment's rules revision {rules}, not "
                          f"{RULES_REVISION}: left out; `sigmarl sweep runs_root=...` re-evaluates it")
             continue
-        rows = _rows_of(run)
+        rows = rows_of(run)
         model = str(rows["model"].iloc[0])
         key = (model, run.seed)
         if key in seen:
@@ -214,6 +214,6 @@ def checkpoint_of(runs: list[RunFolder], model: str, name: str) -> Path | None:
     """`name` (best.pt / final.pt) of `model`'s lowest seed in the folder, if present."""
     for run in runs:
         if (run.path / name).is_file() and (run.path / ROWS_FILE).is_file():
-            if str(_rows_of(run)["model"].iloc[0]) == model:
+            if str(rows_of(run)["model"].iloc[0]) == model:
                 return run.path / name
     return None
