@@ -151,6 +151,9 @@ class StudyConfig:
     # variant -> its own baseline, where it is not `baseline` (e.g. a factorial study compares
     # within each level of the other factor: {M4-paper: M0-paper, M4: M0})
     baselines: dict[str, str] = field(default_factory=dict)
+    # name -> [x, y]: does x's comparison with its baseline differ from y's with its own?
+    # (e.g. {M4: [M4-paper, M4]}: do the paper's rules change what M4 leaves out?)
+    interactions: dict[str, list[str]] = field(default_factory=dict)
     seeds: list[int] = field(default_factory=lambda: [0])
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
     metrics: list[str] = field(default_factory=lambda: ["CR_total"])  # the metrics decided on

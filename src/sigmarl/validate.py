@@ -112,6 +112,16 @@ def _check_study(cfg: Config) -> None:
                                    f"variants ({', '.join(study.variants)})")
         if variant == base:
             raise SigmarlError(f"study.baselines.{variant}: a variant cannot be its own baseline")
+    for name, pair in study.interactions.items():
+        if not isinstance(pair, list) or len(pair) != 2 or not all(isinstance(v, str) for v in pair):
+            raise SigmarlError(f"study.interactions.{name} must be two variants, e.g. [M4-paper, M4]")
+        groups = [g for v in pair for g in (v, study.baselines.get(v, study.baseline))]
+        if study.variants and not set(groups) <= set(study.variants):
+            raise SigmarlError(f"study.interactions.{name}: {', '.join(sorted(set(groups) - set(study.variants)))} "
+                               "not among the study's variants")
+        if len(set(groups)) != 4:
+            raise SigmarlError(f"study.interactions.{name}: {pair[0]} and {pair[1]} and their baselines must be "
+                               f"four different variants, got {', '.join(groups)}")
     if any(s < 0 or s > SEED_MAX for s in study.seeds):
         raise SigmarlError(f"study.seeds must be in 0..{SEED_MAX}, got {study.seeds}")
     for name in [*study.metrics, *study.margins]:

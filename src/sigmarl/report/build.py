@@ -18,6 +18,7 @@ from sigmarl.report.aggregate import (
     validate_rows,
 )
 from sigmarl.report.composite import composite_scores
+from sigmarl.report.interactions import interaction_table, interactions_markdown
 from sigmarl.report.marl_eval import interval_data, marl_eval_data
 from sigmarl.report.paper import paper_curves, paper_values
 from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
@@ -226,7 +227,8 @@ def build_report(
 def _write_extras(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | None, out_dir: Path,
                   paths: dict[str, Path], *, trim: bool, design: Design | None
                   ) -> tuple[pd.DataFrame | None, str]:
-    """The verdict table and the marl-eval export, beside the report's other files."""
+    """The verdict table (and a factorial study's interactions), and the marl-eval export, beside
+    the report's other files."""
     design = replace(design, variants=list(models)) if design is not None else \
         Design(variants=models, baseline="M0" if "M0" in models else models[0])
     verdicts, text = None, ""
@@ -237,6 +239,13 @@ def _write_extras(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | 
         paths["verdicts"] = out_dir / "verdicts.csv"
         paths["verdicts_md"].write_text(text, encoding="utf-8")
         verdicts.to_csv(paths["verdicts"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        interactions = interaction_table(trim_collisions(rows) if trim else rows, design) \
+            if design.interactions else None
+        if interactions is not None and len(interactions):  # a factorial study's question
+            text += "\n" + interactions_markdown(interactions, design)
+            paths["verdicts_md"].write_text(text, encoding="utf-8")
+            paths["interactions"] = out_dir / "interactions.csv"
+            interactions.to_csv(paths["interactions"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
     chosen = rows[rows["model"].isin(models)]
     for key, name, data in [("marl_eval", "marl_eval.json", marl_eval_data(chosen, models, curves)),
                             ("marl_eval_intervals", "marl_eval_intervals.json", interval_data(chosen, models))]:

@@ -64,6 +64,8 @@ class Design:
     # variant -> the variant it is compared with instead of `baseline` (a factorial study
     # compares within each level of the other factor, e.g. M4-paper with M0-paper, M4 with M0)
     baselines: dict[str, str] = field(default_factory=dict)
+    # name -> (x, y): x's comparison with its baseline set against y's (`report.interactions`)
+    interactions: dict[str, tuple[str, str]] = field(default_factory=dict)
     scenarios: Sequence[str] | None = None  # None: every scenario in the rows, in order
     metrics: Sequence[str] = ("CR_total",)
     margins: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_MARGINS))
@@ -100,7 +102,10 @@ def design_of(study, variants: Sequence[str]) -> Design:
     variants = list(variants)
     baseline = study.baseline if study.baseline in variants else ("M0" if "M0" in variants else variants[0])
     own = {v: b for v, b in dict(study.baselines).items() if v in variants}
-    return Design(variants=variants, baseline=baseline, baselines=own, metrics=tuple(study.metrics),
+    present = {name: (x, y) for name, (x, y) in dict(study.interactions).items()
+               if {x, y, own.get(x, baseline), own.get(y, baseline)} <= set(variants)}
+    return Design(variants=variants, baseline=baseline, baselines=own, interactions=present,
+                  metrics=tuple(study.metrics),
                   margins={**DEFAULT_MARGINS, **dict(study.margins)}, max_seeds=int(study.max_seeds))
 
 

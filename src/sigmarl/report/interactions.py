@@ -1,0 +1,111 @@
+"""Interactions of a factorial study: does a comparison change from one level of a factor to another?
+
+A study whose variants have their own baselines (`study.baselines`) may set two comparisons
+against each other (`study.interactions`: name -> [x, y]): x against its baseline and y
+against its own, e.g. M4-paper against M0-paper and M4 against M0, to ask whether the paper's
+rules change what leaving out the boundary distances does. The interaction is the difference
+of the two differences, (x - bx) - (y - by), over the seed means of four independent groups.
+Its standard error is the root of the sum of the two comparisons' squared standard errors,
+and its degrees of freedom are Satterthwaite's over the four groups, which equal
+se^4 / (se_x^4 / df_x + se_y^4 / df_y) for the two comparisons' Welch degrees of freedom.
+
+Verdicts as for comparisons, over their own Holm family (every interaction, scenario and
+metric): **differs** where the adjusted p of a zero interaction is <= alpha; **same within
++-margin** (the metric's equivalence margin) by two one-sided tests; otherwise undecided.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from sigmarl.report.tdist import t_cdf, t_ppf, t_sf
+from sigmarl.report.verdicts import METRICS, Design, Test, comparisons, holm, margin_unit
+
+COLUMNS = [
+    "scenario", "metric", "interaction", "x", "x_baseline", "y", "y_baseline", "x_difference",
+    "y_difference", "difference", "ci_low", "ci_high", "margin", "p_difference", "p_difference_holm",
+    "p_equivalence", "p_equivalence_holm", "verdict",
+]  # fmt: skip
+
+
+def contrast(x: Test, y: Test, margin: float) -> Test:
+    """The test of (x's difference) - (y's difference), the four groups independent."""
+    d = x.difference - y.difference
+    se = math.hypot(x.se, y.se)
+    if not math.isfinite(se) or se == 0:  # a side with one seed, or no noise at all
+        return Test(x.n_variant, y.n_variant, x.difference, y.difference, d, se, math.nan, math.nan, math.nan)
+    df = se**4 / (x.se**4 / x.df + y.se**4 / y.df)
+    p_diff = min(1.0, 2 * t_sf(abs(d) / se, df))
+    p_eq = max(t_sf((d + margin) / se, df), t_cdf((d - margin) / se, df))
+    return Test(x.n_variant, y.n_variant, x.difference, y.difference, d, se, df, p_diff, p_eq)
+
+
+def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
+    """One row per (scenario, metric, interaction) the rows can make, in that order."""
+    tests = {(c.scenario, c.metric, c.variant): c.test for c in comparisons(rows, design)}
+    records = []
+    for (scenario, metric, variant), tx in tests.items():
+        for name, (x, y) in design.interactions.items():
+            if variant != x or (scenario, metric, y) not in tests:
+                continue
+            margin = design.margins[metric]
+            t = contrast(tx, tests[(scenario, metric, y)], margin)
+            se_ok = math.isfinite(t.df)
+            half = t_ppf(0.5 + (1 - design.alpha) / 2, t.df) * t.se if se_ok else math.nan
+            records.append({
+                "scenario": scenario, "metric": metric, "interaction": name,
+                "x": x, "x_baseline": design.baseline_of(x), "y": y, "y_baseline": design.baseline_of(y),
+                "x_difference": t.variant_mean, "y_difference": t.baseline_mean, "difference": t.difference,
+                "ci_low": t.difference - half, "ci_high": t.difference + half, "margin": margin,
+                "p_difference": t.p_difference, "p_equivalence": t.p_equivalence,
+            })
+    frame = pd.DataFrame(records, columns=COLUMNS)
+    if len(frame):
+        frame["p_difference_holm"] = holm(frame["p_difference"].to_numpy())
+        frame["p_equivalence_holm"] = holm(frame["p_equivalence"].to_numpy())
+        frame["verdict"] = [
+            "differs" if pd_ <= design.alpha else "same" if pe <= design.alpha else "undecided"
+            for pd_, pe in zip(np.nan_to_num(frame["p_difference_holm"], nan=1.0),
+                               np.nan_to_num(frame["p_equivalence_holm"], nan=1.0), strict=True)
+        ]
+    return frame
+
+
+def _p(p: float) -> str:
+    return "–" if not math.isfinite(p) else "<0.001" if p < 0.001 else f"{p:.3f}"
+
+
+def _signed(x: float) -> str:
+    return f"{x:+.3f}" if math.isfinite(x) else "–"
+
+
+def interactions_markdown(table: pd.DataFrame, design: Design) -> str:
+    lines = [
+        f"Interactions: does a comparison change between the two levels? (difference of differences; "
+        f"{len(table)} tests, Holm-corrected; α = {design.alpha:g}):",
+        "",
+        "| Scenario | Metric | Interaction | first difference | second difference | difference of differences "
+        "[95% CI] | p (Holm) | p same (Holm) | verdict |",
+        "|---|---|---|---|---|---|---:|---:|---|",
+    ]
+    for _, r in table.iterrows():
+        unit = METRICS[r["metric"]][2]
+        verdict = f"same within ±{r['margin']:g} {margin_unit(r['metric'])}" if r["verdict"] == "same" \
+            else str(r["verdict"])
+        lines.append(
+            f"| {r['scenario']} | {r['metric']} ({unit}) | {r['interaction']} | {r['x']} − {r['x_baseline']}: "
+            f"{_signed(r['x_difference'])} | {r['y']} − {r['y_baseline']}: {_signed(r['y_difference'])} | "
+            f"{_signed(r['difference'])} [{_signed(r['ci_low'])}, {_signed(r['ci_high'])}] | "
+            f"{_p(r['p_difference'])} ({_p(r['p_difference_holm'])}) | {_p(r['p_equivalence'])} "
+            f"({_p(r['p_equivalence_holm'])}) | {verdict} |"
+        )
+    lines += [
+        "",
+        "difference of differences: the first minus the second, with Welch-Satterthwaite's t-interval over "
+        "the seed means of the four groups. differs: a zero interaction rejected at Holm's level; same: two "
+        "one-sided tests within the metric's margin; otherwise undecided.",
+    ]
+    return "\n".join(lines) + "\n"
