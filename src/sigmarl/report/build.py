@@ -233,19 +233,18 @@ def _write_extras(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | 
         Design(variants=models, baseline="M0" if "M0" in models else models[0])
     verdicts, text = None, ""
     if design.baseline in models and design.compared:
-        verdicts = verdict_table(trim_collisions(rows) if trim else rows, design)
+        measured = trim_collisions(rows) if trim else rows
+        verdicts = verdict_table(measured, design)
         text = verdicts_markdown(verdicts, design)
-        paths["verdicts_md"] = out_dir / "verdicts.md"
         paths["verdicts"] = out_dir / "verdicts.csv"
-        paths["verdicts_md"].write_text(text, encoding="utf-8")
         verdicts.to_csv(paths["verdicts"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-        interactions = interaction_table(trim_collisions(rows) if trim else rows, design) \
-            if design.interactions else None
+        interactions = interaction_table(measured, design) if design.interactions else None
         if interactions is not None and len(interactions):  # a factorial study's question
             text += "\n" + interactions_markdown(interactions, design)
-            paths["verdicts_md"].write_text(text, encoding="utf-8")
             paths["interactions"] = out_dir / "interactions.csv"
             interactions.to_csv(paths["interactions"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        paths["verdicts_md"] = out_dir / "verdicts.md"
+        paths["verdicts_md"].write_text(text, encoding="utf-8")
     chosen = rows[rows["model"].isin(models)]
     for key, name, data in [("marl_eval", "marl_eval.json", marl_eval_data(chosen, models, curves)),
                             ("marl_eval_intervals", "marl_eval_intervals.json", interval_data(chosen, models))]:

@@ -21,8 +21,18 @@ import math
 import numpy as np
 import pandas as pd
 
-from sigmarl.report.tdist import t_cdf, t_ppf, t_sf
-from sigmarl.report.verdicts import METRICS, Design, Test, comparisons, holm, margin_unit
+from sigmarl.report.tdist import t_ppf
+from sigmarl.report.verdicts import (
+    METRICS,
+    Design,
+    Test,
+    _p,
+    _signed,
+    comparisons,
+    holm,
+    margin_unit,
+    p_values,
+)
 
 COLUMNS = [
     "scenario", "metric", "interaction", "x", "x_baseline", "y", "y_baseline", "x_difference",
@@ -38,9 +48,7 @@ def contrast(x: Test, y: Test, margin: float) -> Test:
     if not math.isfinite(se) or se == 0:  # a side with one seed, or no noise at all
         return Test(x.n_variant, y.n_variant, x.difference, y.difference, d, se, math.nan, math.nan, math.nan)
     df = se**4 / (x.se**4 / x.df + y.se**4 / y.df)
-    p_diff = min(1.0, 2 * t_sf(abs(d) / se, df))
-    p_eq = max(t_sf((d + margin) / se, df), t_cdf((d - margin) / se, df))
-    return Test(x.n_variant, y.n_variant, x.difference, y.difference, d, se, df, p_diff, p_eq)
+    return Test(x.n_variant, y.n_variant, x.difference, y.difference, d, se, df, *p_values(d, se, df, margin))
 
 
 def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
@@ -72,14 +80,6 @@ def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
                                np.nan_to_num(frame["p_equivalence_holm"], nan=1.0), strict=True)
         ]
     return frame
-
-
-def _p(p: float) -> str:
-    return "–" if not math.isfinite(p) else "<0.001" if p < 0.001 else f"{p:.3f}"
-
-
-def _signed(x: float) -> str:
-    return f"{x:+.3f}" if math.isfinite(x) else "–"
 
 
 def interactions_markdown(table: pd.DataFrame, design: Design) -> str:

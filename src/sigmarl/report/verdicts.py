@@ -145,9 +145,14 @@ def welch(variant: np.ndarray, baseline: np.ndarray, margin: float) -> Test:
     if se == 0:  # every seed of both sides gave the same value: no noise to test against
         return Test(na, nb, *means, d, 0.0, math.inf, float(d == 0), float(abs(d) >= margin))
     df = (va + vb) ** 2 / (va**2 / (na - 1) + vb**2 / (nb - 1))
+    return Test(na, nb, *means, d, se, df, *p_values(d, se, df, margin))
+
+
+def p_values(d: float, se: float, df: float, margin: float) -> tuple[float, float]:
+    """Two-sided p of d = 0, and TOST's p of |d| >= margin, for a t statistic on df."""
     p_diff = min(1.0, 2 * t_sf(abs(d) / se, df))
     p_eq = max(t_sf((d + margin) / se, df), t_cdf((d - margin) / se, df))
-    return Test(na, nb, *means, d, se, df, p_diff, p_eq)
+    return p_diff, p_eq
 
 
 def holm(p_values: Sequence[float]) -> np.ndarray:
