@@ -84,3 +84,14 @@ def test_the_report_writes_the_interactions_beside_the_verdicts(tmp_path):
     assert saved["difference"].tolist() == pytest.approx([1.5])
     text = (tmp_path / "verdicts.md").read_text()
     assert text.startswith("Verdicts against each model's baseline") and "\nInteractions: " in text
+
+
+@pytest.mark.parametrize("override, says", [
+    ("study.baselines.M4=M9", "study.baselines.M4: 'M9' is not one of the study's variants"),
+    ("+study.baselines.M9=M0", "study.baselines: 'M9' is not one of the study's variants"),
+    ("study.baselines.M4=M4", "a variant cannot be its own baseline"),
+])
+def test_a_bad_baseline_is_refused_at_composition(override, says):
+    with pytest.raises(SigmarlError) as e:
+        compose_config(["study=paper_rules", override])
+    assert says in str(e.value)
