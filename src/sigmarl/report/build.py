@@ -18,6 +18,12 @@ from sigmarl.report.aggregate import (
     validate_rows,
 )
 from sigmarl.report.composite import composite_scores
+from sigmarl.report.curve_verdicts import (
+    curve_verdicts_markdown,
+    paper_model_of,
+    paper_seed_table,
+    separation_table,
+)
 from sigmarl.report.interactions import interaction_table, interactions_markdown
 from sigmarl.report.marl_eval import interval_data, marl_eval_data
 from sigmarl.report.paper import paper_curves, paper_values
@@ -195,6 +201,9 @@ def build_report(
         paths["latex"] = out_dir / "table.tex"
         paths["latex"].write_text(to_latex(table, ci=ci), encoding="utf-8")
     verdicts, verdicts_md = _write_extras(rows, models, curves, out_dir, paths, trim=trim, design=design)
+    if training is not None:
+        _write_curve_verdicts(rows, models, curves, training, out_dir, paths, design=design,
+                              paper_last=last if compare_paper else None)
     if figures:
         # matplotlib is imported only when drawing: table-only reports stay quick to start
         from sigmarl.report.figures import (
@@ -224,13 +233,40 @@ def build_report(
                   verdicts, verdicts_md)
 
 
+def _write_curve_verdicts(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame, training: pd.DataFrame,
+                          out_dir: Path, paths: dict[str, Path], *, design: Design | None,
+                          paper_last: dict[str, float] | None) -> None:
+    """When the compared training curves part, and (`paper_last` given) whether the paper's one
+    seed could be one of ours: curve_verdicts.md, curve_verdicts.csv and paper_seeds.csv."""
+    design = _design(design, models)
+    separation = separation_table(curves, design) if design.baseline in models else None
+    seeds = None
+    if paper_last is not None:
+        obs = rows.drop_duplicates("model").set_index("model")["obs"].astype(str)
+        seeds = paper_seed_table(training, paper_last, {m: paper_model_of(obs.get(m, "")) for m in models})
+    text = curve_verdicts_markdown(*(x if x is not None else pd.DataFrame() for x in (separation, seeds)), design)
+    if not text:
+        return
+    paths["curve_verdicts_md"] = out_dir / "curve_verdicts.md"
+    paths["curve_verdicts_md"].write_text(text, encoding="utf-8")
+    for key, frame in [("curve_verdicts", separation), ("paper_seeds", seeds)]:
+        if frame is not None and len(frame):
+            paths[key] = out_dir / f"{key}.csv"
+            frame.to_csv(paths[key], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+
+
+def _design(design: Design | None, models: list[str]) -> Design:
+    """The study's verdict design over the report's columns (default: against M0, or the first)."""
+    return replace(design, variants=list(models)) if design is not None else \
+        Design(variants=models, baseline="M0" if "M0" in models else models[0])
+
+
 def _write_extras(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | None, out_dir: Path,
                   paths: dict[str, Path], *, trim: bool, design: Design | None
                   ) -> tuple[pd.DataFrame | None, str]:
     """The verdict table (and a factorial study's interactions), and the marl-eval export, beside
     the report's other files."""
-    design = replace(design, variants=list(models)) if design is not None else \
-        Design(variants=models, baseline="M0" if "M0" in models else models[0])
+    design = _design(design, models)
     verdicts, text = None, ""
     if design.baseline in models and design.compared:
         measured = trim_collisions(rows) if trim else rows

@@ -1,0 +1,175 @@
+"""Training curves compared: when two variants' curves part, and whether the paper's seed is one of ours.
+
+Two questions the evaluation verdicts cannot answer:
+
+- **When does a difference appear?** For each declared comparison (a variant against its
+  baseline, `verdicts.Design`) and each window of `WINDOW` iterations, Welch's test on the
+  seeds' mean episode reward over that window, Holm-corrected over every (comparison, window)
+  test. A comparison *parts* at the first window from which every later window is decided the
+  same way. If that is early, a reduced training budget is enough to show the difference.
+- **Is the paper's curve one of ours?** The paper trained one seed per model, so its final
+  reward is one draw. Ours are several: the prediction interval for one more seed's final
+  reward (mean of the last `training.LAST` iterations), mean +- t * s * sqrt(1 + 1/n), says
+  whether the paper's value could be a seed of ours (inside) or not (above or below).
+
+Rewards of variants trained under different rules are not measured alike: the paper's rules
+change the reward (a lagged steering penalty) and where episodes end (terminal time-outs).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from sigmarl.ablation import OBS_FLAGS
+from sigmarl.report.tdist import t_ppf
+from sigmarl.report.training import LAST
+from sigmarl.report.verdicts import Design, _signed, holm, welch
+
+WINDOW = 25  # iterations per window: the curves are noisy per iteration
+
+SEPARATION_COLUMNS = [
+    "variant", "baseline", "first", "last", "n_variant", "n_baseline", "variant_mean", "baseline_mean",
+    "difference", "ci_low", "ci_high", "p_difference", "p_difference_holm", "verdict",
+]  # fmt: skip
+PAPER_SEED_COLUMNS = ["variant", "paper_model", "seeds", "mean", "pi_low", "pi_high", "paper", "verdict"]
+
+
+def window_means(curves: pd.DataFrame, window: int = WINDOW) -> pd.DataFrame:
+    """Each (model, seed)'s mean reward per window of `window` iterations (1..window, ...):
+    columns model, seed, first, last, reward. A window the run has not finished is left out."""
+    c = curves.assign(model=curves["model"].astype(str))
+    if "seed" not in c.columns:
+        c = c.assign(seed=0)
+    c = c.assign(first=(c["iteration"] - 1) // window * window + 1)
+    g = c.groupby(["model", "seed", "first"], sort=True)["reward"]
+    out = g.mean().rename("reward").reset_index()
+    out = out[g.size().to_numpy() == window]
+    return out.assign(last=out["first"] + window - 1)[["model", "seed", "first", "last", "reward"]]
+
+
+def separation_table(curves: pd.DataFrame, design: Design, window: int = WINDOW) -> pd.DataFrame:
+    """Per compared variant and window its difference in mean reward from its baseline, with
+    Welch's interval and verdict (higher, lower or undecided at Holm's level over all rows)."""
+    means = window_means(curves, window)
+    rows = []
+    for variant in design.compared:
+        base = design.baseline_of(variant)
+        a, b = means[means["model"] == variant], means[means["model"] == base]
+        for first in sorted(set(a["first"]) & set(b["first"])):
+            x = a.loc[a["first"] == first, "reward"].to_numpy()
+            y = b.loc[b["first"] == first, "reward"].to_numpy()
+            test = welch(x, y, margin=0.0)
+            low, high = test.interval(0.95)
+            rows.append({"variant": variant, "baseline": base, "first": int(first), "last": int(first + window - 1),
+                         "n_variant": test.n_variant, "n_baseline": test.n_baseline,
+                         "variant_mean": test.variant_mean, "baseline_mean": test.baseline_mean,
+                         "difference": test.difference, "ci_low": low, "ci_high": high,
+                         "p_difference": test.p_difference})
+    frame = pd.DataFrame(rows, columns=SEPARATION_COLUMNS)
+    frame["p_difference_holm"] = holm(frame["p_difference"].to_numpy()) if len(frame) else []
+    decided = np.nan_to_num(frame["p_difference_holm"].to_numpy(float), nan=1.0) <= design.alpha
+    frame["verdict"] = np.where(decided, np.where(frame["difference"] > 0, "higher", "lower"), "undecided")
+    return frame
+
+
+def parting(table: pd.DataFrame) -> dict[tuple[str, str], tuple[int, str] | None]:
+    """(variant, baseline) -> (first iteration of the window from which every later window has
+    the same decided verdict, that verdict), or None where the last window is undecided."""
+    out: dict[tuple[str, str], tuple[int, str] | None] = {}
+    for key, g in table.groupby(["variant", "baseline"], sort=False):
+        verdicts = g.sort_values("first")["verdict"].tolist()
+        firsts = g.sort_values("first")["first"].tolist()
+        if not verdicts or verdicts[-1] == "undecided":
+            out[key] = None
+            continue
+        i = len(verdicts) - 1
+        while i > 0 and verdicts[i - 1] == verdicts[-1]:
+            i -= 1
+        out[key] = (int(firsts[i]), verdicts[-1])
+    return out
+
+
+def paper_model_of(obs: str) -> str | None:
+    """The paper's model (M0..M5) whose observation strategies are `obs` ("E,V,DA,DB,DC"), if any."""
+    names = list(OBS_FLAGS.values())
+    on = set(obs.split(",")) if obs else set()
+    if on == set(names):
+        return "M0"
+    missing = [k for k, name in enumerate(names, 1) if name not in on]
+    return f"M{missing[0]}" if len(missing) == 1 and on == set(names) - {names[missing[0] - 1]} else None
+
+
+def paper_seed_table(summary: pd.DataFrame, paper_last: dict[str, float], paper_model: dict[str, str | None],
+                     level: float = 0.95) -> pd.DataFrame:
+    """Per variant of `summary` (`training.training_summary`) whose paper model has a curve: the
+    prediction interval for one more seed's final reward and where the paper's value lies."""
+    rows = []
+    for variant, g in summary.groupby("model", sort=False):
+        model = paper_model.get(str(variant))
+        if model is None or model not in paper_last:
+            continue
+        r = g["reward_last"].to_numpy(float)
+        n, mean, paper = len(r), float(r.mean()), float(paper_last[model])
+        if n >= 2:
+            half = t_ppf(0.5 + level / 2, n - 1) * float(r.std(ddof=1)) * math.sqrt(1 + 1 / n)
+            low, high = mean - half, mean + half
+            verdict = "above" if paper > high else "below" if paper < low else "within"
+        else:
+            low = high = math.nan
+            verdict = "one seed"
+        rows.append({"variant": str(variant), "paper_model": model, "seeds": n, "mean": mean,
+                     "pi_low": low, "pi_high": high, "paper": paper, "verdict": verdict})
+    return pd.DataFrame(rows, columns=PAPER_SEED_COLUMNS)
+
+
+def curve_verdicts_markdown(separation: pd.DataFrame, paper_seeds: pd.DataFrame, design: Design,
+                            window: int = WINDOW) -> str:
+    lines = []
+    if len(separation):
+        lines += [
+            f"Training curves compared: mean episode reward per window of {window} iterations, each variant "
+            f"against its baseline ({len(separation)} tests, Holm-corrected; α = {design.alpha:g}):",
+            "",
+            "| Variant | Baseline | parts at | " + " | ".join(
+                f"{f}–{f + window - 1}" for f in sorted(separation["first"].unique())) + " |",
+            "|---|---|---|" + "---:|" * separation["first"].nunique(),
+        ]
+        parts = parting(separation)
+        firsts = sorted(separation["first"].unique())
+        for (variant, base), g in separation.groupby(["variant", "baseline"], sort=False):
+            at = parts[(variant, base)]
+            where = "undecided" if at is None else f"{at[1]} from iteration {at[0]}"
+            cells = {int(r["first"]): _cell(r) for _, r in g.iterrows()}
+            lines.append(f"| {variant} | {base} | {where} | " + " | ".join(cells.get(f, "–") for f in firsts) + " |")
+        lines += [
+            "",
+            "Each cell: the variant's mean reward minus its baseline's over the window's seeds [Welch's 95% interval, "
+            "unadjusted], * where Holm's correction decides it. parts at: the window from which every later one is "
+            "decided the same way.",
+        ]
+    if len(paper_seeds):
+        lines += [
+            "" if lines else None,
+            f"The paper's one seed against ours: final reward (mean of the last {LAST} iterations), our mean and "
+            "the 95% prediction interval for one more seed:",
+            "",
+            "| Variant | paper's model | seeds | our mean | one more seed (95%) | paper | paper's seed |",
+            "|---|---|---:|---:|---|---:|---|",
+        ]
+        for _, r in paper_seeds.iterrows():
+            pi = "–" if math.isnan(r["pi_low"]) else f"[{r['pi_low']:.2f}, {r['pi_high']:.2f}]"
+            lines.append(f"| {r['variant']} | {r['paper_model']} | {r['seeds']} | {r['mean']:.2f} | {pi} | "
+                         f"{r['paper']:.2f} | {r['verdict']} |")
+        lines += ["", "within: the paper's value could be one of our seeds; above or below: it could not, at 95%."]
+    return "\n".join(line for line in lines if line is not None) + "\n" if lines else ""
+
+
+def _cell(r: pd.Series) -> str:
+    if math.isnan(r["ci_low"]):
+        return f"{_signed(r['difference'])} (n {r['n_variant']}/{r['n_baseline']})"
+    star = "*" if r["verdict"] != "undecided" else ""
+    return f"{_signed(r['difference'])}{star} [{_signed(r['ci_low'])}, {_signed(r['ci_high'])}]"
+

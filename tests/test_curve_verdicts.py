@@ -1,0 +1,115 @@
+"""Training curves compared (`report.curve_verdicts`): window means, Welch per window against the
+baseline with Holm's correction, where the curves part, and the paper's one seed against our
+prediction interval; checked on hand-worked numbers, scipy and a results folder."""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from sigmarl.cli import main
+from sigmarl.report.curve_verdicts import (
+    paper_model_of,
+    paper_seed_table,
+    parting,
+    separation_table,
+    window_means,
+)
+from sigmarl.report.verdicts import Design
+
+FIXTURE = Path(__file__).parent / "data" / "results"
+
+
+def _curves(model: str, seed: int, rewards) -> pd.DataFrame:
+    return pd.DataFrame({"model": model, "seed": seed, "iteration": range(1, len(rewards) + 1),
+                         "reward": [float(r) for r in rewards]})
+
+
+def test_window_means_leave_out_an_unfinished_window():
+    curves = _curves("M0", 0, list(range(1, 8)))  # 7 iterations, windows of 3: 1-3, 4-6, (7)
+    means = window_means(curves, window=3)
+    assert means["first"].tolist() == [1, 4] and means["last"].tolist() == [3, 6]
+    assert means["reward"].tolist() == [2.0, 5.0]
+
+
+def test_separation_is_welch_per_window_against_the_baseline_with_holm():
+    # window 1: variant seeds 1, 2, 3 against 0, 0, 0; window 2: 10, 11, 12 against 0, 0, 1
+    curves = pd.concat([
+        _curves("M4", 0, [1, 10]), _curves("M4", 1, [2, 11]), _curves("M4", 2, [3, 12]),
+        _curves("M0", 0, [0, 0]), _curves("M0", 1, [0, 0]), _curves("M0", 2, [0, 1]),
+    ])
+    table = separation_table(curves, Design(variants=["M0", "M4"], baseline="M0"), window=1).set_index("first")
+    # window 1 by hand: d = 2, se = sqrt(1/3) (the baseline has no spread), df = 2
+    half = 4.302653 * math.sqrt(1 / 3)
+    assert table.loc[1, "difference"] == pytest.approx(2.0)
+    assert (table.loc[1, "ci_low"], table.loc[1, "ci_high"]) == pytest.approx((2 - half, 2 + half), abs=1e-5)
+    for first, (a, b) in {1: ([1, 2, 3], [0, 0, 0]), 2: ([10, 11, 12], [0, 0, 1])}.items():
+        p = stats.ttest_ind(a, b, equal_var=False).pvalue
+        assert table.loc[first, "p_difference"] == pytest.approx(p, rel=1e-4)
+    p1, p2 = table["p_difference"]
+    assert p1 > 0.05 and p2 < 0.025  # Holm over the two: the smaller p doubled
+    assert table.loc[2, "p_difference_holm"] == pytest.approx(2 * p2)
+    assert table["verdict"].tolist() == ["undecided", "higher"]
+
+
+def test_parting_is_the_first_window_of_the_last_unbroken_decided_run():
+    def table(verdicts):
+        return pd.DataFrame({"variant": "M4", "baseline": "M0", "first": [1 + 25 * i for i in range(len(verdicts))],
+                             "verdict": verdicts})
+
+    assert parting(table(["undecided", "lower", "undecided", "lower", "lower"])) == {("M4", "M0"): (76, "lower")}
+    assert parting(table(["higher", "higher"])) == {("M4", "M0"): (1, "higher")}
+    assert parting(table(["higher", "undecided"])) == {("M4", "M0"): None}
+    assert parting(table(["lower", "higher"])) == {("M4", "M0"): (26, "higher")}
+
+
+def test_paper_model_of_the_observation_strategies():
+    assert paper_model_of("E,V,DA,DB,DC") == "M0"
+    assert paper_model_of("V,DA,DB,DC") == "M1"
+    assert paper_model_of("E,V,DA,DC") == "M4"
+    assert paper_model_of("E,V,DA,DB") == "M5"
+    assert paper_model_of("E,V") is None and paper_model_of("") is None
+
+
+def test_the_paper_seed_against_the_prediction_interval_for_one_more_seed():
+    summary = pd.DataFrame({"model": ["M0", "M0", "M0", "M4"], "seed": [0, 1, 2, 0],
+                            "reward_last": [5.0, 6.0, 7.0, 4.0]})
+    table = paper_seed_table(summary, {"M0": 12.0, "M4": 4.3}, {"M0": "M0", "M4": "M4"}).set_index("variant")
+    # mean 6, s 1, n 3: 6 +- t(0.975, 2) * sqrt(1 + 1/3)
+    half = stats.t.ppf(0.975, 2) * math.sqrt(4 / 3)
+    assert (table.loc["M0", "pi_low"], table.loc["M0", "pi_high"]) == pytest.approx((6 - half, 6 + half), rel=1e-5)
+    assert table.loc["M0", "verdict"] == "above"  # 12 > 10.97
+    assert table.loc["M4", "verdict"] == "one seed" and np.isnan(table.loc["M4", "pi_low"])
+    inside = paper_seed_table(summary, {"M0": 6.5}, {"M0": "M0", "M4": None})
+    assert inside["verdict"].tolist() == ["within"]
+
+
+def test_a_folder_report_writes_when_the_curves_part(tmp_path):
+    source = tmp_path / "results"
+    shutil.copytree(FIXTURE, source)
+    rng = np.random.default_rng(0)
+    for model, level in [("M0", 5.0), ("M4", 4.0)]:
+        for seed in (0, 1):
+            path = source / model / f"seed{seed}" / "metrics.csv"
+            head = pd.read_csv(path).iloc[[0]]
+            metrics = pd.concat([head] * 50, ignore_index=True)
+            metrics["iteration"] = range(1, 51)
+            # the same rise for both, M4 one lower throughout, a little noise per seed
+            metrics["episode_reward_mean"] = np.linspace(0, 2, 50) + level + rng.normal(0, 0.01, 50)
+            metrics.to_csv(path, index=False)
+    out = tmp_path / "out"
+    assert main(["report", "--from", str(source), "--out", str(out), "--no-figures", "--compare-paper",
+                 "tracking.enabled=false"]) == 0
+    separation = pd.read_csv(out / "curve_verdicts.csv")
+    assert separation["first"].tolist() == [1, 26]
+    assert separation["difference"].to_numpy() == pytest.approx([-1.0, -1.0], abs=0.02)
+    text = (out / "curve_verdicts.md").read_text()
+    assert "| M4 | M0 | lower from iteration 1 |" in text
+    seeds = pd.read_csv(out / "paper_seeds.csv").set_index("variant")
+    assert seeds.loc["M4", "paper"] == pytest.approx(4.33, abs=0.01) and seeds.loc["M4", "seeds"] == 2
