@@ -19,7 +19,7 @@ import pytest
 import torch
 import yaml
 
-from sigmarl.compose import conf_dir
+from sigmarl.compose import compose_config, conf_dir
 from sigmarl.config import Config, RulesConfig
 from sigmarl.env.paper_rules import (
     MEASUREMENT_SWITCHES,
@@ -403,3 +403,22 @@ def test_stale_observation_after_a_test_mode_respawn(env_factory, straight_road)
         assert bool(nxt["agents", "info", "respawned"][0, 0]) and float(nxt["agents", "info", "lane_collision"][0, 0]) == 1.0
         assert torch.equal(nxt["agents", "observation"], before) == stale
         assert float(d.sc.pos[0, 0, 1]) == pytest.approx(0.0, abs=1e-6)  # respawned on the center line
+
+
+def test_the_rule_families_split_the_paper_rules_and_the_screen_declares_them():
+    from sigmarl.sweep import plan_sweep
+
+    families = ["dynamics", "observation", "collisions", "episodes"]
+    on = {f: PaperRules.from_config(compose_config([f"rules=paper_{f}"]).rules).on() for f in families}
+    assert on["dynamics"] == ["drag_dynamics"] and "own_boundary_index" in on["observation"]
+    assert sorted(s for f in families for s in on[f]) == sorted(ALL)  # each switch in exactly one
+    plan = plan_sweep(["study=paper_switches", "seeds=[0]", "tracking.enabled=false"], cores=2)
+    jobs = {j.label: j for j in plan.jobs}
+    assert len(jobs) == 12 and plan.config.ppo.iterations == 100
+    for f in families:
+        for model, preset in [("M0", "full"), ("M4", "no_distance_to_boundaries")]:
+            cfg = compose_config(jobs[f"{model}-{f}"].overrides)
+            assert cfg.obs.preset == preset and PaperRules.from_config(cfg.rules).on() == on[f]
+            assert cfg.ppo.iterations == 100
+    study = plan.config.study
+    assert study.baselines["M4-observation"] == "M4-ours" and study.interactions["observation"] == ["M4-observation", "M0-observation"]
