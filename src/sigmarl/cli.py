@@ -128,16 +128,16 @@ def cmd_report(args: argparse.Namespace) -> None:
                            "point tracking.tracking_uri=... at the study's store, or use --from FOLDER")
     if args.animations:
         use_threads(cfg.threads)
-    from sigmarl.report.command import make_report, make_report_from_folder
+    from sigmarl.report.command import ReportOptions, make_report, make_report_from_folder
 
-    models = args.models.split(",") if args.models else None
-    options = dict(out_dir=Path(args.out) if args.out else None, latex=args.latex, trim=args.trim,
-                   compare_paper=args.compare_paper, models=models, ci=args.ci,
-                   figures=not args.no_figures, animation_steps=args.animations)
+    options = ReportOptions(latex=args.latex, trim=args.trim, compare_paper=args.compare_paper,
+                            models=args.models.split(",") if args.models else None, ci=args.ci,
+                            figures=not args.no_figures, animation_steps=args.animations)
+    out_dir = Path(args.out) if args.out else None
     if args.source:
-        report = make_report_from_folder([Path(s) for s in args.source], cfg, **options)
+        report = make_report_from_folder([Path(s) for s in args.source], cfg, out_dir, options)
     else:
-        report = make_report(cfg, **options)
+        report = make_report(cfg, out_dir, options)
     print(report.markdown)  # the table's notes are part of it
     if report.statistics:
         print(report.statistics)

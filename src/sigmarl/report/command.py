@@ -8,6 +8,7 @@ import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 from sigmarl.config import Config
@@ -18,52 +19,43 @@ from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, open_tracker, records
 
 
-def make_report(
-    cfg: Config,
-    out_dir: Path | None = None,
-    latex: bool = False,
-    trim: bool = False,
-    compare_paper: bool = False,
-    models: list[str] | None = None,
-    ci: bool = False,
-    figures: bool = True,
-    animation_steps: int = 0,
-) -> Report:
+@dataclass(frozen=True)
+class ReportOptions:
+    """What `sigmarl report` draws, whatever the rows come from."""
+
+    latex: bool = False
+    trim: bool = False  # drop each evaluation's best and worst simulation from the collision rates
+    compare_paper: bool = False
+    models: list[str] | None = None  # the columns, in order (default: the study's variants)
+    ci: bool = False
+    figures: bool = True
+    animation_steps: int = 0  # > 0: one GIF per scenario of the baseline driving
+
+
+def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions = ReportOptions()) -> Report:
     """Build the report of experiment `cfg.tracking.experiment` from its MLflow store; log it as
     a report run to the tracker.
 
     With figures, also the maps of the table's scenarios; with animation_steps > 0, one GIF
-    per scenario of M0 (its first seed's evaluated checkpoint) driving under the evaluation
-    protocol.
+    per scenario of the baseline (its first seed's evaluated checkpoint) driving under the
+    evaluation protocol.
     """
     experiment = cfg.tracking.experiment
     tracker = open_tracker(cfg)  # checked before any work
     client = connect(cfg, write=False)  # the rows are read from MLflow whichever tracker logs
     rows = records.load_evaluation_rows(client, experiment)
-    curves = records.load_training_curves(client, experiment) if figures else None
+    curves = records.load_training_curves(client, experiment) if options.figures else None
     out_dir = out_dir or Path("reports") / experiment
-    options = dict(models=models, trim=trim, compare_paper=compare_paper, latex=latex, ci=ci,
-                   figures=figures, animation_steps=animation_steps)
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
-                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), **options)
+                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options)
     tracker.log_report(report.composite, report.paths.values(), {
         "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
     })
     return report
 
 
-def make_report_from_folder(
-    root: Path | list[Path],
-    cfg: Config,
-    out_dir: Path | None = None,
-    latex: bool = False,
-    trim: bool = False,
-    compare_paper: bool = False,
-    models: list[str] | None = None,
-    ci: bool = False,
-    figures: bool = True,
-    animation_steps: int = 0,
-) -> Report:
+def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path | None = None,
+                            options: ReportOptions = ReportOptions()) -> Report:
     """The report of a results folder, or of several (a study whose variants live in different
     folders, e.g. reused runs of another study), `sigmarl.report.folder`: no MLflow reads, no
     training.
@@ -77,33 +69,32 @@ def make_report_from_folder(
     out_dir = out_dir or Path("reports") / (root.resolve().name if len(roots) == 1 else cfg.study.name)
     curves = results.curves if len(results.curves) else None  # read anyway: training.md needs them
     tracker = open_tracker(cfg)  # checked before any work
-    options = dict(models=models, trim=trim, compare_paper=compare_paper, latex=latex, ci=ci,
-                   figures=figures, animation_steps=animation_steps)
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
-                    extra_notes=results.notes, **options)
+                    options, extra_notes=results.notes)
     tracker.log_report(report.composite, report.paths.values(),
                        {"source": ",".join(str(r.resolve()) for r in roots)},
                        source=",".join(str(r) for r in roots))
     return report
 
 
-def _build(rows, curves, out_dir: Path, cfg: Config, m0_checkpoint: Callable[[], Path], *,
-           models, trim, compare_paper, latex, ci, figures, animation_steps, extra_notes=()) -> Report:
-    """Tables, figures, the scenarios' maps and M0's animations, drawn into a staging folder and
-    moved into out_dir only when all are complete."""
+def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callable[[], Path],
+           options: ReportOptions, extra_notes=()) -> Report:
+    """Tables, figures, the scenarios' maps and the baseline's animations, drawn into a staging
+    folder and moved into out_dir only when all are complete."""
+    models = options.models
     if models is None and cfg.study.variants:
         models = _study_labels(rows, list(cfg.study.variants))
     with staged(out_dir) as staging:
-        report = build_report(rows, models, out_dir=staging, trim=trim, compare_paper=compare_paper,
-                              latex=latex, curves=curves, ci=ci, figures=figures,
-                              extra_notes=list(extra_notes), order=list(cfg.study.variants) or None,
-                              baseline=cfg.study.baseline,
+        report = build_report(rows, models, out_dir=staging, trim=options.trim,
+                              compare_paper=options.compare_paper, latex=options.latex, curves=curves,
+                              ci=options.ci, figures=options.figures, extra_notes=list(extra_notes),
+                              order=list(cfg.study.variants) or None, baseline=cfg.study.baseline,
                               design=design_of(cfg.study, models or sorted(set(rows["model"].astype(str)))))
         known = [s for s in report.table.scenarios if s in scenario_names()]  # the maps the rows ran on
-        if figures:
+        if options.figures:
             _add_maps(report, staging, known)
-        if animation_steps > 0:
-            report.paths.update(_animations(m0_checkpoint(), cfg, staging, animation_steps, known))
+        if options.animation_steps > 0:
+            report.paths.update(_animations(baseline_checkpoint(), cfg, staging, options.animation_steps, known))
         publish(report, staging, out_dir)
     return report
 
