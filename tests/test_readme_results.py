@@ -23,7 +23,7 @@ def test_readme_results_are_the_rebuilt_report(tmp_path, monkeypatch):
     script = _script()
     text = script.README.read_text(encoding="utf-8")
     rebuilt = script.report_files()
-    assert set(rebuilt) == {"results-table", "results-statistics", "results-training", "results-verdicts",
+    assert set(rebuilt) == {"results-table", "results-statistics", "results-training", "results-verdicts", "results-curves",
                             "generalisation-matrix", "generalisation-verdicts"}
     for name, content in rebuilt.items():
         start, end = script.readme_block(text, name)

@@ -141,8 +141,9 @@ def cmd_report(args: argparse.Namespace) -> None:
     print(report.markdown)  # the table's notes are part of it
     if report.statistics:
         print(report.statistics)
-    if "training_md" in report.paths:
-        print(report.paths["training_md"].read_text(encoding="utf-8"))
+    for key in ("training_md", "curve_verdicts_md"):
+        if key in report.paths:
+            print(report.paths[key].read_text(encoding="utf-8"))
     if report.verdicts_markdown:
         print(report.verdicts_markdown)
     print("wrote " + ", ".join(str(p) for p in report.paths.values()))
