@@ -19,6 +19,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
+from sigmarl.env.paper_rules import for_evaluation
 from sigmarl.errors import SigmarlError
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.scenarios import scenario_names
@@ -41,7 +42,7 @@ def contacts(checkpoint: Path, scenario: str, n_sims: int, steps: int, seed: int
              noise: float | None = None) -> pd.DataFrame:
     n_agents = scenario_of(scenario).n_agents
     actor, state = load_policy(checkpoint, n_agents=n_agents)
-    cfg = config_of(state, checkpoint)
+    cfg = for_evaluation(config_of(state, checkpoint))  # measured as the evaluation measures
     if noise is not None:
         cfg.obs.noise = noise
     env = make_env(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", max_steps=steps,

@@ -422,3 +422,20 @@ def test_the_rule_families_split_the_paper_rules_and_the_screen_declares_them():
             assert cfg.ppo.iterations == 100
     study = plan.config.study
     assert study.baselines["M4-observation"] == "M4-ours" and study.interactions["observation"] == ["M4-observation", "M0-observation"]
+
+
+def test_the_other_raw_vertex_emulation_cuts_into_pieces_nearest_0_1_m():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "densify_check.py"
+    spec = importlib.util.spec_from_file_location("densify_check", path)
+    check = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check)
+    line = np.array([[0.0, 0.0], [0.216, 0.0], [0.266, 0.0], [0.266, 0.36]])
+    dense, first, pieces = check.densify_nearest(line)
+    assert pieces.tolist() == [2, 1, 4]  # 0.216 m: two of 0.108 (shipped: three of 0.072); 0.36 m: four of 0.09
+    assert first.tolist() == [0, 2, 3]
+    expected = np.array([[0.108, 0]] * 2 + [[0.05, 0]] + [[0, 0.09]] * 4)
+    assert np.diff(dense, axis=0) == pytest.approx(expected)
+    assert densify(line)[2].tolist() == [3, 1, 4]
