@@ -37,10 +37,8 @@ CENTER_SPACING = 0.08  # m between the route bank's center points (the contact l
 
 def densify_nearest(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`paper_rules.densify` with every segment cut into the number of pieces nearest to 0.1 m each."""
-    seg = np.diff(points, axis=0)
-    pieces = np.maximum(1, np.round(np.linalg.norm(seg, axis=-1) / 0.1)).astype(int)
-    parts = [points[j] + np.arange(n)[:, None] / n * seg[j] for j, n in enumerate(pieces)]
-    return np.concatenate([*parts, points[-1:]]), np.concatenate([[0], np.cumsum(pieces)[:-1]]), pieces
+    length = np.linalg.norm(np.diff(points, axis=0), axis=-1)
+    return paper_rules.cut(points, np.maximum(1, np.round(length / 0.1)).astype(int))
 
 
 def rates(checkpoint: Path, scenarios: list[str]) -> pd.DataFrame:

@@ -154,12 +154,16 @@ def strict_lane_crossings(corners: torch.Tensor, bounds: torch.Tensor) -> torch.
 def densify(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The polyline with every segment longer than DENSIFY[0] cut into equal pieces of at most
     DENSIFY[1]; and per original segment its first piece's index and its number of pieces."""
+    length = np.linalg.norm(np.diff(points, axis=0), axis=-1)
+    return cut(points, np.where(length > DENSIFY[0] + 1e-9, np.ceil(length / DENSIFY[1] - 1e-9), 1).astype(int))
+
+
+def cut(points: np.ndarray, pieces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The polyline with segment j cut into pieces[j] equal pieces; per segment its first piece's
+    index, and `pieces`."""
     seg = np.diff(points, axis=0)
-    length = np.linalg.norm(seg, axis=-1)
-    pieces = np.where(length > DENSIFY[0] + 1e-9, np.ceil(length / DENSIFY[1] - 1e-9), 1).astype(int)
     parts = [points[j] + np.arange(n)[:, None] / n * seg[j] for j, n in enumerate(pieces)]
-    dense = np.concatenate([*parts, points[-1:]])
-    return dense, np.concatenate([[0], np.cumsum(pieces)[:-1]]), pieces
+    return np.concatenate([*parts, points[-1:]]), np.concatenate([[0], np.cumsum(pieces)[:-1]]), pieces
 
 
 def _raw_center(road_map: RoadMap, route) -> np.ndarray:
