@@ -414,14 +414,20 @@ def test_the_rule_families_split_the_paper_rules_and_the_screen_declares_them():
     assert sorted(s for f in families for s in on[f]) == sorted(ALL)  # each switch in exactly one
     plan = plan_sweep(["study=paper_switches", "seeds=[0]", "tracking.enabled=false"], cores=2)
     jobs = {j.label: j for j in plan.jobs}
-    assert len(jobs) == 12 and plan.config.ppo.iterations == 100
+    assert len(jobs) == 12
     for f in families:
         for model, preset in [("M0", "full"), ("M4", "no_distance_to_boundaries")]:
             cfg = compose_config(jobs[f"{model}-{f}"].overrides)
             assert cfg.obs.preset == preset and PaperRules.from_config(cfg.rules).on() == on[f]
-            assert cfg.ppo.iterations == 100
+            assert cfg.ppo.iterations == 250 and cfg.run_dir == f"results/paper-switches/{model}-{f}/seed0"
+    # the runs under ours and under all of the paper's rules are study=paper_rules' own, reused
+    rules = {j.label: j for j in plan_sweep(["study=paper_rules", "seeds=[0]", "tracking.enabled=false"], cores=2).jobs}
+    for label, folder in [("M0", "paper-budget"), ("M4", "paper-budget"), ("M0-paper", "paper-rules"),
+                          ("M4-paper", "paper-rules")]:
+        assert jobs[label].run_dir == f"results/{folder}/{label}/seed0"
+        assert jobs[label].fingerprint == rules[label].fingerprint
     study = plan.config.study
-    assert study.baselines["M4-observation"] == "M4-ours" and study.interactions["observation"] == ["M4-observation", "M0-observation"]
+    assert study.baselines["M4-observation"] == "M4" and study.interactions["observation"] == ["M4-observation", "M0-observation"]
 
 
 def test_the_other_raw_vertex_emulation_cuts_into_pieces_nearest_0_1_m():
