@@ -10,6 +10,7 @@ environment tests can be worked out by hand.
 from __future__ import annotations
 
 import functools
+import os
 from types import SimpleNamespace
 
 import numpy as np
@@ -77,6 +78,13 @@ class Driver:
         nxt = out["next"]
         self.td = step_mdp(out)
         return nxt
+
+
+@pytest.fixture(scope="session", autouse=True)
+def store_template_cache(tmp_path_factory) -> None:
+    """The suite's own cache of the empty MLflow store (inherited by the commands it starts),
+    so that it neither reads nor writes the user's ~/.cache."""
+    os.environ["SIGMARL_CACHE"] = str(tmp_path_factory.mktemp("sigmarl-cache"))
 
 
 @pytest.fixture(scope="session")

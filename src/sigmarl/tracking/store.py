@@ -10,7 +10,10 @@ minutes of evaluation:
   log output); the first use of a store is serialised by a file lock beside it
   (`mlflow.db.lock`), since two processes creating one store at the same moment both run
   the schema migration and break it; a store left half-migrated by such a race is
-  recreated when it holds no runs, and explained otherwise.
+  recreated when it holds no runs, and explained otherwise;
+- a new SQLite store is a copy of an empty one that MLflow created earlier (kept per MLflow
+  version in `$SIGMARL_CACHE`, default `~/.cache/sigmarl/`): MLflow's own creation runs some
+  fifty schema migrations, 5-9 s of CPU for every new store.
 """
 
 from __future__ import annotations
@@ -18,9 +21,11 @@ from __future__ import annotations
 import functools
 import logging
 import os
+import shutil
 import sqlite3
 import sys
 import tempfile
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import urlparse
@@ -165,8 +170,17 @@ def _probe_sqlite(db: Path) -> None:
 
 def _open_sqlite(uri: str, db: Path):
     """Open (creating or migrating) the store; recreate it if a migration broke it empty."""
+    new = not db.exists() or db.stat().st_size == 0
+    if new and _seed_from_template(db):
+        try:
+            return _open_raw(uri)
+        except Exception:  # a damaged template: forget it, and let MLflow create the store
+            _forget_engines(db)
+            _remove(db)
+            if (template := _template()) is not None:
+                template.unlink(missing_ok=True)
     try:
-        return _open_raw(uri)
+        client = _open_raw(uri)
     except Exception as e:
         runs = _user_records(db)
         if runs != 0 or "locked" in str(e):  # holds something (or is busy): never delete it
@@ -176,12 +190,78 @@ def _open_sqlite(uri: str, db: Path):
         print(f"sigmarl: {db} was left half-created (an interrupted schema migration) and holds "
               "no runs; creating it again", file=sys.stderr)
         _forget_engines(db)
-        for suffix in ("", "-journal", "-wal", "-shm"):
-            Path(f"{db}{suffix}").unlink(missing_ok=True)
+        _remove(db)
+        try:
+            client = _open_raw(uri)
+        except Exception as again:
+            raise SigmarlError(f"MLflow store {db} cannot be created: {_first_line(again)}") from again
+        new = True
+    if new:
+        _save_template(db)
+    return client
+
+
+def _remove(db: Path) -> None:
+    for suffix in ("", "-journal", "-wal", "-shm"):
+        Path(f"{db}{suffix}").unlink(missing_ok=True)
+
+
+def _template() -> Path | None:
+    """Where an empty store of the installed MLflow version is kept; None if MLflow is not
+    installed as a distribution (then its schema cannot be told apart by version)."""
+    from importlib.metadata import PackageNotFoundError, version
+
     try:
-        return _open_raw(uri)
-    except Exception as e:
-        raise SigmarlError(f"MLflow store {db} cannot be created: {_first_line(e)}") from e
+        mlflow_version = version("mlflow")
+    except PackageNotFoundError:
+        return None
+    root = os.environ.get("SIGMARL_CACHE") or Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "sigmarl"
+    return Path(root) / f"mlflow-{mlflow_version}-empty.db"
+
+
+def _seed_from_template(db: Path) -> bool:
+    """Put a copy of the empty template store at `db` (caller holds the store's lock). Only its
+    Default experiment differs between stores: its artifact folder (MLflow's default, `mlruns/0`
+    in the working folder) and its creation time are set as MLflow would set them now."""
+    template = _template()
+    if template is None or not template.is_file():
+        return False
+    tmp = db.with_name(db.name + ".new")
+    try:
+        shutil.copyfile(template, tmp)
+        now = int(time.time() * 1000)
+        con = sqlite3.connect(tmp)
+        try:
+            with con:
+                con.execute("update experiments set artifact_location = ?, creation_time = ?, last_update_time = ? "
+                            "where experiment_id = 0", (str(Path.cwd() / "mlruns" / "0"), now, now))
+        finally:
+            con.close()
+        os.replace(tmp, db)  # the store appears whole or not at all
+    except (OSError, sqlite3.Error):
+        tmp.unlink(missing_ok=True)
+        return False
+    return True
+
+
+def _save_template(db: Path) -> None:
+    """Keep a copy of the store MLflow has just created, while it still holds nothing but its
+    Default experiment. A cache: any failure only means the next store is created by MLflow."""
+    template = _template()
+    if template is None or _user_records(db) != 0:
+        return
+    tmp = template.with_name(f"{template.name}.{os.getpid()}.tmp")
+    try:
+        template.parent.mkdir(parents=True, exist_ok=True)
+        src, dst = sqlite3.connect(f"file:{db}?mode=ro", uri=True), sqlite3.connect(tmp)
+        try:
+            src.backup(dst)  # a consistent copy, whatever the journal holds
+        finally:
+            src.close()
+            dst.close()
+        os.replace(tmp, template)  # two processes saving at once each replace it whole
+    except (OSError, sqlite3.Error):
+        tmp.unlink(missing_ok=True)
 
 
 def _forget_engines(db: Path) -> None:
