@@ -1,9 +1,11 @@
-"""Rewrite the README's results blocks from the committed study folder.
+"""Rewrite the README's results blocks from the committed study folders.
 
 Each block between a pair of the README's markers (`<!-- results-table -->` ...
 `<!-- /results-table -->`, and so on for BLOCKS) is the named file of
-`sigmarl report --from results/paper-budget --compare-paper --ci` verbatim;
-tests/test_readme_results.py checks that they still are. Run after committing new model-seeds:
+`sigmarl report --from results/paper-budget --compare-paper --ci` verbatim (likewise for the
+generalisation study, and for the paper's rules, whose report reads results/paper-rules beside
+results/paper-budget); tests/test_readme_results.py checks that they still are. Run after
+committing new model-seeds:
 
     python scripts/readme_results.py
 """
@@ -27,20 +29,25 @@ BLOCKS = {"results-table": "table.md", "results-statistics": "statistics.md", "r
 # the generalisation study: the same models evaluated on the later maps and denser traffic
 GENERALISATION = "results/generalisation"
 GENERALISATION_BLOCKS = {"generalisation-matrix": "matrix.md", "generalisation-verdicts": "verdicts.md"}
+# the paper's rules: its runs beside the study's runs under ours, which it reuses
+RULES = "results/paper-rules"
+RULES_BLOCKS = {"rules-verdicts": "verdicts.md"}
 
 
 def report_files() -> dict[str, str]:
     """The reports' text for each block, by marker name."""
-    return {**_report(STUDY, BLOCKS, ["--compare-paper"]),
-            **_report(GENERALISATION, GENERALISATION_BLOCKS, ["study=generalisation"])}
+    return {**_report([STUDY], BLOCKS, ["--compare-paper"]),
+            **_report([GENERALISATION], GENERALISATION_BLOCKS, ["study=generalisation"]),
+            **_report([RULES, STUDY], RULES_BLOCKS, ["study=paper_rules"])}
 
 
-def _report(folder: str, blocks: dict[str, str], options: list[str]) -> dict[str, str]:
+def _report(folders: list[str], blocks: dict[str, str], options: list[str]) -> dict[str, str]:
     here = Path.cwd()
+    sources = [arg for folder in folders for arg in ("--from", folder)]
     with tempfile.TemporaryDirectory() as tmp:
         os.chdir(ROOT)  # tracking is off: the report writes only into `tmp`
         try:
-            rc = sigmarl(["report", "--from", folder, "--out", tmp, "--ci", "--no-figures", *options,
+            rc = sigmarl(["report", *sources, "--out", tmp, "--ci", "--no-figures", *options,
                           "tracking.enabled=false"])
         finally:
             os.chdir(here)
@@ -62,13 +69,13 @@ def warn_uncommitted() -> None:
     """The blocks name unfinished run folders; ones git does not hold yet make a README that a
     clean clone does not rebuild (tests/test_readme_results.py then fails there)."""
     try:
-        out = subprocess.run(["git", "status", "--porcelain", "--", STUDY, GENERALISATION], cwd=ROOT, capture_output=True,
-                             text=True, check=True).stdout
+        out = subprocess.run(["git", "status", "--porcelain", "--", STUDY, GENERALISATION, RULES], cwd=ROOT,
+                             capture_output=True, text=True, check=True).stdout
     except (OSError, subprocess.CalledProcessError):
         return
     if out.strip():
-        print(f"warning: {STUDY} or {GENERALISATION} has {len(out.splitlines())} uncommitted change(s); commit them with the "
-              "README, or a clean clone's README test fails", file=sys.stderr)
+        print(f"warning: {STUDY}, {GENERALISATION} or {RULES} has {len(out.splitlines())} uncommitted change(s); "
+              "commit them with the README, or a clean clone's README test fails", file=sys.stderr)
 
 
 def main() -> None:

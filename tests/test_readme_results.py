@@ -24,9 +24,9 @@ def test_readme_results_are_the_rebuilt_report(tmp_path, monkeypatch):
     text = script.README.read_text(encoding="utf-8")
     rebuilt = script.report_files()
     assert set(rebuilt) == {"results-table", "results-statistics", "results-training", "results-verdicts", "results-curves",
-                            "generalisation-matrix", "generalisation-verdicts"}
+                            "generalisation-matrix", "generalisation-verdicts", "rules-verdicts"}
     for name, content in rebuilt.items():
         start, end = script.readme_block(text, name)
         assert text[start:end] == content, (
-            f"README's {name} block differs from `sigmarl report --from results/paper-budget`: "
+            f"README's {name} block differs from the report of its committed folders: "
             "run `python scripts/readme_results.py`")
