@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sqlite3
 import time
 from pathlib import Path
@@ -83,3 +84,15 @@ def test_a_store_is_copied_from_the_template_and_a_damaged_template_is_replaced(
     assert client.create_experiment("works") is not None
     assert _rows(template, "select name from experiments") == [("Default",)]
     assert ("marker",) not in _rows(template, "select name from sqlite_master")
+
+
+def test_a_save_left_by_a_killed_process_is_dropped_later(tmp_path: Path, cache: Path) -> None:
+    _connect(tmp_path / "first" / "mlflow.db")
+    (template,) = cache.glob("mlflow-*-empty.db")
+    stale, live = Path(f"{template}.999999.tmp"), Path(f"{template}.999998.tmp")
+    stale.write_bytes(b"half a store")
+    live.write_bytes(b"being written")
+    hours_ago = time.time() - 2 * 3600
+    os.utime(stale, (hours_ago, hours_ago))
+    _connect(tmp_path / "second" / "mlflow.db")
+    assert not stale.exists() and live.exists()  # a save in progress is never touched

@@ -226,6 +226,7 @@ def _seed_from_template(db: Path) -> bool:
     template = _template()
     if template is None or not template.is_file():
         return False
+    _drop_stale_saves(template)
     tmp = db.with_name(db.name + ".new")
     try:
         shutil.copyfile(template, tmp)
@@ -262,6 +263,19 @@ def _save_template(db: Path) -> None:
         os.replace(tmp, template)  # two processes saving at once each replace it whole
     except (OSError, sqlite3.Error):
         tmp.unlink(missing_ok=True)
+    _drop_stale_saves(template)
+
+
+STALE_SAVE_S = 3600  # a save takes milliseconds; a `.tmp` this old was left by a killed one
+
+
+def _drop_stale_saves(template: Path) -> None:
+    for old in template.parent.glob(f"{template.name}.*.tmp"):
+        try:
+            if time.time() - old.stat().st_mtime > STALE_SAVE_S:
+                old.unlink()
+        except OSError:
+            pass  # another process removed or is replacing it
 
 
 def _forget_engines(db: Path) -> None:
