@@ -25,7 +25,7 @@ README = ROOT / "README.md"
 STUDY = "results/paper-budget"  # relative to ROOT: the report's notes name run folders by it
 # README marker name -> the report file it holds
 BLOCKS = {"results-table": "table.md", "results-statistics": "statistics.md", "results-training": "training.md",
-          "results-verdicts": "verdicts.md", "results-curves": "curve_verdicts.md"}
+          "results-verdicts": "verdicts.md", "results-curves": "curve_verdicts.md", "results-seeds": "seeds.md"}
 # the generalisation study: the same models evaluated on the later maps and denser traffic
 GENERALISATION = "results/generalisation"
 GENERALISATION_BLOCKS = {"generalisation-matrix": "matrix.md", "generalisation-verdicts": "verdicts.md"}

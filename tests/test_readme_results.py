@@ -24,6 +24,7 @@ def test_readme_results_are_the_rebuilt_report(tmp_path, monkeypatch):
     text = script.README.read_text(encoding="utf-8")
     rebuilt = script.report_files()
     assert set(rebuilt) == {"results-table", "results-statistics", "results-training", "results-verdicts", "results-curves",
+                            "results-seeds",
                             "generalisation-matrix", "generalisation-verdicts", "rules-verdicts"}
     for name, content in rebuilt.items():
         start, end = script.readme_block(text, name)

@@ -28,6 +28,7 @@ from sigmarl.report.interactions import interaction_table, interactions_markdown
 from sigmarl.report.marl_eval import interval_data, marl_eval_data
 from sigmarl.report.paper import paper_curves, paper_values
 from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
+from sigmarl.report.seeds import seed_table, seeds_markdown
 from sigmarl.report.tables import (
     ResultTable,
     build_table,
@@ -146,6 +147,7 @@ def build_report(
     Writes table.md, table.csv, summary.csv, composite_scores.csv (with CS intervals),
     improvement.csv and aggregate_scores.csv with statistics.md (`sigmarl.report.scores`),
     table.tex (latex), training.csv and training.md (curves given; `sigmarl.report.training`),
+    seeds.csv and seeds.md (each model-seed's rates and rewards; `sigmarl.report.seeds`),
     distributions.png and training_curves.png (figures; curves given).
 
     Also (`design`: the verdicts' study parameters; default: the models against M0, or the
@@ -197,6 +199,10 @@ def build_report(
         paths["training_md"] = out_dir / "training.md"
         training.to_csv(paths["training"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
         paths["training_md"].write_text(training_markdown(training, last), encoding="utf-8")
+    seeds = seed_table(rows, curves, models)
+    paths["seeds"], paths["seeds_md"] = out_dir / "seeds.csv", out_dir / "seeds.md"
+    seeds.to_csv(paths["seeds"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    paths["seeds_md"].write_text(seeds_markdown(seeds, scenario_order(rows)), encoding="utf-8")
     if latex:
         paths["latex"] = out_dir / "table.tex"
         paths["latex"].write_text(to_latex(table, ci=ci), encoding="utf-8")

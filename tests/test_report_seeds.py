@@ -1,0 +1,67 @@
+"""The report's per-seed table (`seeds.md`/`seeds.csv`): each model-seed's rates, speed and
+reward windows, checked on hand-worked rows and curves and on a results folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from sigmarl.cli import main
+from sigmarl.report.seeds import reward_windows, seed_table, seeds_markdown
+
+FIXTURE = Path(__file__).parent / "data" / "results"
+
+
+def _row(model, seed, scenario, sim, aa, al, speed):
+    return {"model": model, "obs": "E,V,DA,DB,DC", "seed": seed, "scenario": scenario, "simulation": sim,
+            "CR_AA": aa, "CR_AL": al, "CR_total": aa + al, "CD": 1.0, "AS": speed}
+
+
+def test_seed_table_of_hand_worked_rows_and_curves():
+    rows = pd.DataFrame([
+        # M0 seed 0: CPM agent collisions 0.002 and 0.004 of steps -> 0.30 %; Roundabout lane 0.01 -> 1.00 %
+        _row("M0", 0, "CPM", 0, 0.002, 0.0, 0.6), _row("M0", 0, "CPM", 1, 0.004, 0.0, 0.7),
+        _row("M0", 0, "Roundabout", 0, 0.0, 0.01, 0.5), _row("M0", 0, "Roundabout", 1, 0.0, 0.01, 0.5),
+        # M4 seed 3: no collisions at all
+        _row("M4", 3, "CPM", 0, 0.0, 0.0, 0.7), _row("M4", 3, "Roundabout", 0, 0.0, 0.0, 0.72),
+    ])
+    # M0 seed 0 learns reward = iteration over 250 iterations; M4 seed 3 has no curve
+    curves = pd.DataFrame({"model": "M0", "seed": 0, "iteration": range(1, 251),
+                           "reward": [float(i) for i in range(1, 251)]})
+    table = seed_table(rows, curves, ["M0", "M4"]).set_index(["model", "seed"])
+    m0 = table.loc[("M0", 0)]
+    assert m0["CR_total_CPM"] == pytest.approx(0.3) and m0["CR_AA_CPM"] == pytest.approx(0.3)
+    assert m0["CR_AL_Roundabout"] == pytest.approx(1.0) and m0["CR_total_worst"] == pytest.approx(1.0)
+    assert (m0["AS_min"], m0["AS_max"]) == pytest.approx((0.5, 0.65))
+    # the windows 51-75, 126-150, 226-250 of reward = iteration
+    assert reward_windows(250) == [(51, 75), (126, 150), (226, 250)]
+    assert [m0[f"reward_{i}"] for i in range(3)] == pytest.approx([63.0, 138.0, 238.0])
+    assert pd.isna(table.loc[("M4", 3), "reward_0"]) and table.loc[("M4", 3), "CR_total_worst"] == 0
+    text = seeds_markdown(table.reset_index(), ["CPM", "Roundabout"])
+    assert "reward, iterations 51–75 / 126–150 / 226–250" in text  # the one training length there is
+    assert "| M0 | 0 | 0.30 / 1.00 | 1.00 | 0.30 / 0.00 | 0.00 / 1.00 | 0.50–0.65 | 63.00 / 138.00 / 238.00 |" in text
+    assert "| M4 | 3 | 0.00 / 0.00 | 0.00 | 0.00 / 0.00 | 0.00 / 0.00 | 0.70–0.72 | – / – / – |" in text
+
+
+def test_short_trainings_have_windows_inside_them():
+    assert reward_windows(10) == [(1, 3), (1, 6), (1, 10)]
+    assert reward_windows(1) == [(1, 1), (1, 1), (1, 1)]
+
+
+def test_folder_report_writes_the_seed_table(tmp_path):
+    assert main(["report", "--from", str(FIXTURE), "--out", str(tmp_path), "--no-figures",
+                 "tracking.enabled=false"]) == 0
+    table = pd.read_csv(tmp_path / "seeds.csv")
+    rows = pd.concat(pd.read_csv(p) for p in sorted(FIXTURE.glob("*/seed*/evaluation_rows.csv")))
+    expected = rows.groupby(["model", "seed", "scenario"])["CR_total"].mean().mul(100)
+    for r in table.to_dict("records"):
+        for scenario in rows["scenario"].unique():
+            assert r[f"CR_total_{scenario}"] == pytest.approx(expected[(r["model"], r["seed"], scenario)])
+    assert len(table) == len(expected.droplevel("scenario").index.unique())
+    # seeds of different training lengths: the windows are named as fractions of each one's training
+    assert "reward at 30% / 60% / 100% of training" in seeds_markdown(
+        pd.DataFrame([{**table.iloc[0], "iterations": 10}, {**table.iloc[1], "iterations": 250}]),
+        list(rows["scenario"].unique()))
+    assert (tmp_path / "seeds.md").read_text(encoding="utf-8").startswith("Each evaluated model-seed")
