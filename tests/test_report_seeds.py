@@ -9,7 +9,13 @@ import pandas as pd
 import pytest
 
 from sigmarl.cli import main
-from sigmarl.report.seeds import reward_windows, seed_table, seeds_markdown
+from sigmarl.report.seeds import (
+    reward_collisions,
+    reward_windows,
+    seed_table,
+    seeds_markdown,
+    spearman,
+)
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 
@@ -65,3 +71,37 @@ def test_folder_report_writes_the_seed_table(tmp_path):
         pd.DataFrame([{**table.iloc[0], "iterations": 10}, {**table.iloc[1], "iterations": 250}]),
         list(rows["scenario"].unique()))
     assert (tmp_path / "seeds.md").read_text(encoding="utf-8").startswith("Each evaluated model-seed")
+
+
+def test_spearman_agrees_with_scipy_ties_included():
+    from scipy.stats import spearmanr
+
+    x = pd.Series([3.2, 4.1, 4.1, 5.0, 2.2, 6.3, 5.5])
+    y = pd.Series([0.9, 0.2, 0.4, 0.1, 0.9, 0.05, 0.3])
+    rho, p = spearman(x, y)
+    expected = spearmanr(x, y)
+    assert rho == pytest.approx(expected.statistic, abs=1e-12)
+    assert p == pytest.approx(expected.pvalue, rel=1e-6)
+    assert all(pd.isna(v) for v in spearman(pd.Series([1.0, 1.0, 1.0]), pd.Series([1.0, 2.0, 3.0])))
+
+
+def test_reward_and_collisions_of_hand_worked_seeds():
+    # M0: 5 seeds whose collisions fall as their early reward rises (rho -1); M4: 5 seeds with
+    # the reverse (rho +1); M2: 2 seeds, too few to be listed alone or pooled
+    records = []
+    for model, sign, n in [("M0", -1, 5), ("M4", 1, 5), ("M2", 1, 2)]:
+        for seed in range(n):
+            records.append({"model": model, "seed": seed, "CR_total_CPM": 1.0 + sign * seed,
+                            "CR_total_Roundabout": 3.0 + sign * seed, "reward_0": float(seed),
+                            "reward_1": 2.0, "reward_2": float(seed % 2)})
+    corr = reward_collisions(pd.DataFrame(records), ["CPM", "Roundabout"]).set_index("models")
+    assert list(corr.index) == ["M0", "M4", "M0 + M4"] and corr.loc["M0 + M4", "seeds"] == 10
+    assert corr.loc["M0", "rho_0"] == pytest.approx(-1.0) and corr.loc["M0", "p_0"] == 0.0
+    assert corr.loc["M4", "rho_0"] == pytest.approx(1.0)
+    assert pd.isna(corr.loc["M0", "rho_1"])  # a constant reward ranks nothing
+    # pooled: CR_total means 2, 1, 0, -1, -2 (M0) and 2, 3, 4, 5, 6 (M4) against rewards 0..4 twice
+    from scipy.stats import spearmanr
+
+    expected = spearmanr([0, 1, 2, 3, 4] * 2, [2, 1, 0, -1, -2, 2, 3, 4, 5, 6])
+    assert corr.loc["M0 + M4", "rho_0"] == pytest.approx(expected.statistic)
+    assert corr.loc["M0 + M4", "p_0"] == pytest.approx(expected.pvalue, rel=1e-6)

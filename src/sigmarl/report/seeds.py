@@ -7,12 +7,16 @@ query. Rates are each seed's mean over its simulations, in % of steps like the t
 
 from __future__ import annotations
 
+import math
+
 import pandas as pd
 
 from sigmarl.report.aggregate import model_order, scenario_order
+from sigmarl.report.tdist import t_sf
 from sigmarl.report.training import LAST
 
 RATES = ["CR_total", "CR_AA", "CR_AL"]
+MIN_SEEDS = 5  # fewer seeds than this give no useful rank correlation
 # The reward windows end at these fractions of a seed's training: at the paper's budget of 250
 # iterations, iterations 51-75, 126-150 and 226-250 (early, middle and final learning).
 WINDOW_ENDS = (0.3, 0.6, 1.0)
@@ -64,6 +68,39 @@ def _rewards(curves: pd.DataFrame | None, model: str, seed: int) -> dict[str, fl
     return out
 
 
+def spearman(x: pd.Series, y: pd.Series) -> tuple[float, float]:
+    """Spearman's rank correlation and its two-sided p-value from Student's t with n - 2 degrees
+    of freedom (the approximation scipy.stats.spearmanr uses); ties share their mean rank."""
+    rx, ry = x.rank(), y.rank()
+    n = len(rx)
+    if n < 3 or rx.nunique() < 2 or ry.nunique() < 2:
+        return float("nan"), float("nan")
+    rho = float(rx.corr(ry))
+    if abs(rho) >= 1 - 1e-12:  # a perfect ranking (up to rounding): no t to compute
+        return math.copysign(1.0, rho), 0.0
+    t = rho * math.sqrt((n - 2) / (1 - rho * rho))
+    return rho, min(1.0, 2 * t_sf(abs(t), n - 2))
+
+
+def reward_collisions(table: pd.DataFrame, scenarios: list[str], min_seeds: int = MIN_SEEDS) -> pd.DataFrame:
+    """Does a seed's training reward predict how much it collides? Spearman's rho between the
+    reward in each window and CR_total averaged over `scenarios`, over the seeds of each model
+    with at least `min_seeds` of them, and over those models' seeds pooled (a model's level then
+    mixes in; rank correlation within one model is the cleaner reading)."""
+    table = table.assign(CR_total_mean=table[[f"CR_total_{s}" for s in scenarios]].mean(axis=1))
+    counts = table.dropna(subset=["reward_0"]).groupby("model", sort=False).size()
+    models = [m for m, n in counts.items() if n >= min_seeds]
+    groups = [[m] for m in models] + ([models] if len(models) > 1 else [])
+    records = []
+    for group in groups:
+        g = table[table["model"].isin(group)].dropna(subset=["reward_0"])
+        record: dict = {"models": " + ".join(group), "seeds": len(g)}
+        for i in range(len(WINDOW_ENDS)):
+            record[f"rho_{i}"], record[f"p_{i}"] = spearman(g[f"reward_{i}"], g["CR_total_mean"])
+        records.append(record)
+    return pd.DataFrame(records)
+
+
 def seeds_markdown(table: pd.DataFrame, scenarios: list[str]) -> str:
     """The table as Markdown: one line per model-seed, scenarios in `scenarios`' order."""
     iterations = table["iterations"].dropna().unique() if "iterations" in table else []
@@ -86,7 +123,31 @@ def seeds_markdown(table: pd.DataFrame, scenarios: list[str]) -> str:
         rewards = " / ".join(_num(r[f"reward_{i}"]) for i in range(len(WINDOW_ENDS)))
         lines.append(f"| {r['model']} | {r['seed']} | {rates[0]} | {_num(r['CR_total_worst'])} | {rates[1]} | "
                      f"{rates[2]} | {speed} | {rewards} |")
+    correlation = reward_collisions(table, scenarios)
+    if len(correlation):
+        windows = reward_head.removeprefix("reward, iterations ").removeprefix("reward at ")
+        lines += [
+            "",
+            "Does a seed's training reward predict its collisions? Spearman's rank correlation between "
+            "the reward in each window and CR_total averaged over the scenarios, over the seeds of each "
+            f"model with at least {MIN_SEEDS} (and over those models' seeds pooled); two-sided p from "
+            "Student's t, not corrected for the several windows and groups:",
+            "",
+            f"| Models | seeds | rho (p), {windows} |",
+            "|---|---:|---|",
+        ]
+        for r in correlation.to_dict("records"):
+            cells = " / ".join(f"{_signed(r[f'rho_{i}'])} ({_p(r[f'p_{i}'])})" for i in range(len(WINDOW_ENDS)))
+            lines.append(f"| {r['models']} | {r['seeds']} | {cells} |")
     return "\n".join(lines) + "\n"
+
+
+def _signed(x: float) -> str:
+    return "–" if pd.isna(x) else f"{x:+.2f}"
+
+
+def _p(x: float) -> str:
+    return "–" if pd.isna(x) else ("<0.001" if x < 0.001 else f"{x:.3f}")
 
 
 def _num(x: float) -> str:
