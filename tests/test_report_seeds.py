@@ -20,15 +20,15 @@ from sigmarl.report.seeds import (
 FIXTURE = Path(__file__).parent / "data" / "results"
 
 
-def _row(model, seed, scenario, sim, aa, al, speed):
+def _row(model, seed, scenario, sim, aa, al, speed, cd=1.0):
     return {"model": model, "obs": "E,V,DA,DB,DC", "seed": seed, "scenario": scenario, "simulation": sim,
-            "CR_AA": aa, "CR_AL": al, "CR_total": aa + al, "CD": 1.0, "AS": speed}
+            "CR_AA": aa, "CR_AL": al, "CR_total": aa + al, "CD": cd, "AS": speed}
 
 
 def test_seed_table_of_hand_worked_rows_and_curves():
     rows = pd.DataFrame([
         # M0 seed 0: CPM agent collisions 0.002 and 0.004 of steps -> 0.30 %; Roundabout lane 0.01 -> 1.00 %
-        _row("M0", 0, "CPM", 0, 0.002, 0.0, 0.6), _row("M0", 0, "CPM", 1, 0.004, 0.0, 0.7),
+        _row("M0", 0, "CPM", 0, 0.002, 0.0, 0.6, cd=1.5), _row("M0", 0, "CPM", 1, 0.004, 0.0, 0.7, cd=2.0),
         _row("M0", 0, "Roundabout", 0, 0.0, 0.01, 0.5), _row("M0", 0, "Roundabout", 1, 0.0, 0.01, 0.5),
         # M4 seed 3: no collisions at all
         _row("M4", 3, "CPM", 0, 0.0, 0.0, 0.7), _row("M4", 3, "Roundabout", 0, 0.0, 0.0, 0.72),
@@ -41,14 +41,15 @@ def test_seed_table_of_hand_worked_rows_and_curves():
     assert m0["CR_total_CPM"] == pytest.approx(0.3) and m0["CR_AA_CPM"] == pytest.approx(0.3)
     assert m0["CR_AL_Roundabout"] == pytest.approx(1.0) and m0["CR_total_worst"] == pytest.approx(1.0)
     assert (m0["AS_min"], m0["AS_max"]) == pytest.approx((0.5, 0.65))
+    assert (m0["CD_CPM"], m0["CD_Roundabout"]) == pytest.approx((1.75, 1.0))  # cm, as the rows hold it
     # the windows 51-75, 126-150, 226-250 of reward = iteration
     assert reward_windows(250) == [(51, 75), (126, 150), (226, 250)]
     assert [m0[f"reward_{i}"] for i in range(3)] == pytest.approx([63.0, 138.0, 238.0])
     assert pd.isna(table.loc[("M4", 3), "reward_0"]) and table.loc[("M4", 3), "CR_total_worst"] == 0
     text = seeds_markdown(table.reset_index(), ["CPM", "Roundabout"])
     assert "reward, iterations 51–75 / 126–150 / 226–250" in text  # the one training length there is
-    assert "| M0 | 0 | 0.30 / 1.00 | 1.00 | 0.30 / 0.00 | 0.00 / 1.00 | 0.50–0.65 | 63.00 / 138.00 / 238.00 |" in text
-    assert "| M4 | 3 | 0.00 / 0.00 | 0.00 | 0.00 / 0.00 | 0.00 / 0.00 | 0.70–0.72 | – / – / – |" in text
+    assert "| M0 | 0 | 0.30 / 1.00 | 1.00 | 0.30 / 0.00 | 0.00 / 1.00 | 1.75 / 1.00 | 0.50–0.65 | 63.00 / 138.00 / 238.00 |" in text
+    assert "| M4 | 3 | 0.00 / 0.00 | 0.00 | 0.00 / 0.00 | 0.00 / 0.00 | 1.00 / 1.00 | 0.70–0.72 | – / – / – |" in text
 
 
 def test_short_trainings_have_windows_inside_them():

@@ -1,4 +1,5 @@
-"""Per model-seed figures: each trained policy's collision rates, speed and training reward.
+"""Per model-seed figures: each trained policy's collision rates, center-line deviation, speed and
+training reward.
 
 The table's cells average seeds; this lists them one by one, so that a claim such as "one seed
 of seven drives like the paper's M4" can be read off a generated file instead of a hand-run
@@ -33,12 +34,12 @@ def reward_windows(iterations: int) -> list[tuple[int, int]]:
 
 def seed_table(rows: pd.DataFrame, curves: pd.DataFrame | None, models: list[str] | None = None) -> pd.DataFrame:
     """One row per evaluated (model, seed): `<rate>_<scenario>` in %, the worst scenario's CR_total,
-    the speed's range over scenarios, and the mean reward in each of `reward_windows` (NaN where
+    `CD_<scenario>` in cm, the speed's range over scenarios, and the mean reward in each of `reward_windows` (NaN where
     the seed has no training curve)."""
     models = model_order(rows, models)
     scenarios = scenario_order(rows)
     per_seed = rows[rows["model"].isin(models)].groupby(["model", "seed", "scenario"], sort=False)[
-        [*RATES, "AS"]].mean()
+        [*RATES, "CD", "AS"]].mean()
     records = []
     for model in models:
         for seed in sorted(rows.loc[rows["model"] == model, "seed"].unique()):
@@ -47,6 +48,8 @@ def seed_table(rows: pd.DataFrame, curves: pd.DataFrame | None, models: list[str
             for rate in RATES:
                 for scenario in scenarios:
                     record[f"{rate}_{scenario}"] = 100 * means[rate].get(scenario, float("nan"))
+            for scenario in scenarios:
+                record[f"CD_{scenario}"] = means["CD"].get(scenario, float("nan"))
             present = means.reindex(scenarios)
             record["CR_total_worst"] = 100 * present["CR_total"].max()
             record["AS_min"], record["AS_max"] = present["AS"].min(), present["AS"].max()
@@ -114,15 +117,16 @@ def seeds_markdown(table: pd.DataFrame, scenarios: list[str]) -> str:
         f"steps, each the seed's mean over its simulations; reward: mean episode reward over {LAST} "
         "iterations):",
         "",
-        f"| Model | seed | CR_total (%) | worst | CR_AA (%) | CR_AL (%) | AS (m/s) | {reward_head} |",
-        "|---|---:|---|---:|---|---|---|---|",
+        f"| Model | seed | CR_total (%) | worst | CR_AA (%) | CR_AL (%) | CD (cm) | AS (m/s) | {reward_head} |",
+        "|---|---:|---|---:|---|---|---|---|---|",
     ]
     for r in table.to_dict("records"):
         rates = [" / ".join(_num(r[f"{rate}_{s}"]) for s in scenarios) for rate in RATES]
+        deviation = " / ".join(_num(r[f"CD_{s}"]) for s in scenarios)
         speed = f"{r['AS_min']:.2f}–{r['AS_max']:.2f}"
         rewards = " / ".join(_num(r[f"reward_{i}"]) for i in range(len(WINDOW_ENDS)))
         lines.append(f"| {r['model']} | {r['seed']} | {rates[0]} | {_num(r['CR_total_worst'])} | {rates[1]} | "
-                     f"{rates[2]} | {speed} | {rewards} |")
+                     f"{rates[2]} | {deviation} | {speed} | {rewards} |")
     correlation = reward_collisions(table, scenarios)
     if len(correlation):
         windows = reward_head.removeprefix("reward, iterations ").removeprefix("reward at ")
