@@ -12,9 +12,10 @@ import math
 
 import pandas as pd
 
-from sigmarl.report.aggregate import model_order, scenario_order
+from sigmarl.report.aggregate import model_order, scaled, scenario_order
 from sigmarl.report.tdist import t_sf
 from sigmarl.report.training import LAST
+from sigmarl.report.verdicts import _p
 
 RATES = ["CR_total", "CR_AA", "CR_AL"]
 MIN_SEEDS = 5  # fewer seeds than this give no useful rank correlation
@@ -38,8 +39,12 @@ def seed_table(rows: pd.DataFrame, curves: pd.DataFrame | None, models: list[str
     the seed has no training curve)."""
     models = model_order(rows, models)
     scenarios = scenario_order(rows)
-    per_seed = rows[rows["model"].isin(models)].groupby(["model", "seed", "scenario"], sort=False)[
+    chosen = rows[rows["model"].isin(models)]
+    keys = chosen[["model", "seed", "scenario"]]
+    # in the table's units (collision rates in %)
+    per_seed = pd.concat([keys, scaled(chosen)], axis=1).groupby(["model", "seed", "scenario"], sort=False)[
         [*RATES, "CD", "AS"]].mean()
+    by_seed = _curves_by_seed(curves)
     records = []
     for model in models:
         for seed in sorted(rows.loc[rows["model"] == model, "seed"].unique()):
@@ -47,24 +52,31 @@ def seed_table(rows: pd.DataFrame, curves: pd.DataFrame | None, models: list[str
             record: dict = {"model": model, "seed": int(seed)}
             for rate in RATES:
                 for scenario in scenarios:
-                    record[f"{rate}_{scenario}"] = 100 * means[rate].get(scenario, float("nan"))
+                    record[f"{rate}_{scenario}"] = means[rate].get(scenario, float("nan"))
             for scenario in scenarios:
                 record[f"CD_{scenario}"] = means["CD"].get(scenario, float("nan"))
             present = means.reindex(scenarios)
-            record["CR_total_worst"] = 100 * present["CR_total"].max()
+            record["CR_total_worst"] = present["CR_total"].max()
             record["AS_min"], record["AS_max"] = present["AS"].min(), present["AS"].max()
-            record.update(_rewards(curves, model, int(seed)))
+            record.update(_rewards(by_seed.get((model, int(seed)))))
             records.append(record)
     return pd.DataFrame(records)
 
 
-def _rewards(curves: pd.DataFrame | None, model: str, seed: int) -> dict[str, float]:
-    nan = {f"reward_{i}": float("nan") for i in range(len(WINDOW_ENDS))} | {"iterations": float("nan")}
+def _curves_by_seed(curves: pd.DataFrame | None) -> dict[tuple[str, int], pd.DataFrame]:
+    """Each (model, seed)'s curve, split once (a curve without seeds is seed 0's)."""
     if curves is None or not len(curves):
-        return nan
-    c = curves[(curves["model"].astype(str) == model) & (curves.get("seed", 0) == seed)]
-    if not len(c):
-        return nan
+        return {}
+    c = curves.assign(model=curves["model"].astype(str))
+    if "seed" not in c.columns:
+        c = c.assign(seed=0)
+    return {(model, int(seed)): g for (model, seed), g in c.groupby(["model", "seed"], sort=False)}
+
+
+def _rewards(c: pd.DataFrame | None) -> dict[str, float]:
+    """The training length and the mean reward in each of `reward_windows` of one seed's curve."""
+    if c is None:
+        return {f"reward_{i}": float("nan") for i in range(len(WINDOW_ENDS))} | {"iterations": float("nan")}
     out = {"iterations": int(c["iteration"].max())}
     for i, (first, last) in enumerate(reward_windows(out["iterations"])):
         out[f"reward_{i}"] = c.loc[c["iteration"].between(first, last), "reward"].mean()
@@ -148,10 +160,6 @@ def seeds_markdown(table: pd.DataFrame, scenarios: list[str]) -> str:
 
 def _signed(x: float) -> str:
     return "–" if pd.isna(x) else f"{x:+.2f}"
-
-
-def _p(x: float) -> str:
-    return "–" if pd.isna(x) else ("<0.001" if x < 0.001 else f"{x:.3f}")
 
 
 def _num(x: float) -> str:
