@@ -18,12 +18,14 @@ from sigmarl.training.networks import ACTION, LOG_PROB, OBS, PREIMAGE, make_samp
 from sigmarl.training.ppo_loss import TERMS, LeanPPOLoss, TorchrlPPOLoss
 
 
-@pytest.fixture(scope="module", params=[True, False], ids=["shared_value", "value_per_agent"])
+@pytest.fixture(scope="module", params=[(True, True), (True, False), (False, True)],
+                ids=["shared_value", "value_per_agent", "decentralised_critic"])
 def setup(request):
+    centralised, shared = request.param
     cfg = compose_config([
         "tracking.enabled=false", "ppo=smoke", "ppo.num_envs=4", "ppo.frames_per_iteration=128",
         "ppo.entropy_coef=0.01", "network.hidden=[32,32]",
-        f"network.shared_critic_value={request.param}",
+        f"network.shared_critic_value={shared}", f"network.centralised_critic={centralised}",
     ])
     torch.manual_seed(0)
     parts = build(cfg, torch.device("cpu"))

@@ -88,10 +88,18 @@ class EnvConfig:
 
 @dataclass
 class NetworkConfig:
+    """The actor and critic MLPs (the paper's: 256x256 tanh, a centralised critic: MAPPO)."""
+
     hidden: list[int] = field(default_factory=lambda: [256, 256])
+    """hidden layer sizes of the actor and of the critic"""
     activation: str = "tanh"
+    """the hidden layers' activation: tanh | relu | elu"""
     scale_floor: float = 1e-4
-    shared_critic_value: bool = True  # the paper's critic: one value shared by all agents
+    """the smallest standard deviation of the policy's Gaussian"""
+    centralised_critic: bool = True
+    """true (MAPPO, the paper's): the critic sees all agents' observations; false (IPPO): each agent's value from its own observation only"""
+    shared_critic_value: bool = True
+    """true (the paper's): one critic network for all agents (centralised: one value, copied to each); false: one output head (centralised) or one network (decentralised) per agent"""
 
 
 @dataclass

@@ -1,8 +1,9 @@
 """The paper's actor and critic as torchrl modules.
 
 Actor: one MLP shared by all agents, observation D -> hidden -> 4 = (mean, scale) of a Gaussian
-squashed by tanh into the action box. Critic: one centralised MLP over all agents' observations
-(N*D -> hidden -> 1); its single value is shared by all agents.
+squashed by tanh into the action box. Critic (the paper's, MAPPO): one centralised MLP over all
+agents' observations (N*D -> hidden -> 1); its single value is shared by all agents. With
+`network.centralised_critic=false` (IPPO) it sees only each agent's own observation.
 """
 
 from __future__ import annotations
@@ -70,18 +71,21 @@ def make_actor(
 def make_critic(
     net: NetworkConfig, obs_dim: int, n_agents: int, device: str | torch.device = "cpu"
 ) -> TensorDictModule:
-    """Centralised value over all agents' observations.
+    """The value of each agent's state, [..., A, D] observations -> [..., A, 1] values.
 
-    `shared_critic_value=True` (the paper): one MLP evaluated once per state, its value copied to
-    every agent. False: every agent gets its own output head on the same centralised input.
+    `centralised_critic=True` (MAPPO, the paper's): the MLP's input is all agents'
+    observations (A*D). With `shared_critic_value=True` (the paper's) it is one MLP evaluated
+    once per state, its value copied to every agent; False: every agent its own output head
+    on that input. `centralised_critic=False` (IPPO): the input is the agent's own observation
+    (D); `shared_critic_value=True` gives one MLP applied to each agent (its parameters do not
+    depend on A), False one MLP per agent.
     """
-    shared = bool(net.shared_critic_value)
     mlp = MultiAgentMLP(
         n_agent_inputs=obs_dim,
         n_agent_outputs=1,
         n_agents=n_agents,
-        centralised=True,
-        share_params=shared,
+        centralised=bool(net.centralised_critic),
+        share_params=bool(net.shared_critic_value),
         device=device,
         depth=len(net.hidden),
         num_cells=list(net.hidden),
