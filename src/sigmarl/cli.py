@@ -192,7 +192,10 @@ class _PrintAndExit(argparse.Action):
         super().__init__(option_strings, dest, **kwargs)
 
     def __call__(self, parser, namespace, values, option_string=None):
-        print(self.text(parser, values))
+        try:
+            print(self.text(parser, values))
+        except BrokenPipeError:  # `sigmarl --info | head`: the reader left
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         parser.exit()
 
 
@@ -202,10 +205,32 @@ def _completion(parser: argparse.ArgumentParser, shell: str) -> str:
     return bash_script(parser)
 
 
-def _info(parser: argparse.ArgumentParser, _) -> str:
+def _info(parser: argparse.ArgumentParser, key: str | None) -> str:
+    if key:
+        from sigmarl.config_help import describe
+
+        try:
+            return describe(key)
+        except SigmarlError as e:
+            parser.exit(2, f"sigmarl: error: {e}\n")
     from sigmarl.completion import info
 
     return info()
+
+
+_KEYS = "config keys"  # the epilog that _KeysHelp replaces with the keys
+
+
+class _KeysHelp(argparse.RawDescriptionHelpFormatter):
+    """`sigmarl train --help` ends with every config key and its help line (the config's
+    source is read only when the help is printed)."""
+
+    def add_text(self, text: str | None) -> None:
+        if text == _KEYS:
+            from sigmarl.config_help import keys_epilog
+
+            text = keys_epilog()
+        super().add_text(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -219,8 +244,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a folder of your own configs laid out like conf/ (study/, scenario/, map/, ...), "
                         "searched before sigmarl's; repeatable")
     p.add_argument("--version", action="version", version=f"sigmarl {__version__}")
-    p.add_argument("--info", action=_PrintAndExit, nargs=0, text=_info,
-                   help="versions, the config folder, the config groups and their options")
+    p.add_argument("--info", action=_PrintAndExit, nargs="?", text=_info, metavar="KEY",
+                   help="versions, the config folder, the config groups and their options; with KEY "
+                        "(ppo.lr, or a group: ppo) its type, default and help")
     p.add_argument("--completion", action=_PrintAndExit, choices=["bash"], text=_completion,
                    help="print a shell completion script: eval \"$(sigmarl --completion bash)\" "
                         "(zsh: after `autoload bashcompinit && bashcompinit`)")
@@ -232,7 +258,8 @@ def build_parser() -> argparse.ArgumentParser:
     maps.add_argument("--ids", action="store_true", help="label lanelet ids")
     maps.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. map.lane_width=0.25")
     maps.set_defaults(func=cmd_maps)
-    train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow)")
+    train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow)",
+                           epilog=_KEYS, formatter_class=_KeysHelp)
     train.add_argument(
         "overrides", nargs="*", default=[],
         help="Hydra overrides, e.g. obs=no_ego_view seed=3 resume=true; ppo=smoke is a seconds-long try, "

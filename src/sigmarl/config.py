@@ -10,6 +10,10 @@ handed over by Hydra (a sweep job, `sigmarl.sweep.run_job`); there it becomes a 
 config.yaml) becomes one through `config_from_dict`. Its plain-dict form (`as_dict`: the
 same keys, order and values as `OmegaConf.to_container`) is what config.yaml, checkpoints,
 MLflow params and the evaluation key hold.
+
+Every key has one line of help: the string literal on the line after its field (a group's
+is its class docstring's first line). `sigmarl.config_help` reads them for `sigmarl --info
+KEY` and the configuration reference; a key added without one fails the tests.
 """
 
 from __future__ import annotations
@@ -33,27 +37,40 @@ class MapConfig:
     """A road map: the CPM Lab map, a procedural test map, or a user's OSM file."""
 
     name: str = "cpm_intersection"
-    kind: str = "cpm"  # cpm | intersection | on_ramp | roundabout | osm
-    route_set: str = "intersection"  # cpm only: intersection | loops
-    lane_width: float = 0.20  # procedural and OSM maps (CPM is fixed at 0.15)
-    # intersection and roundabout builders: arms at angles 2*pi*k/n_arms (k=0 east);
-    # arm k's straight lanes are arm_lengths[k % len] long (empty: arm_length for all)
+    """The map's name (conf/map/<name>.yaml); labels figures and `sigmarl maps`."""
+    kind: str = "cpm"
+    """Which builder makes it: cpm | intersection | on_ramp | roundabout | osm."""
+    route_set: str = "intersection"
+    """cpm only: the central intersection's 24 routes (intersection) or the whole map's 7 loops (loops)."""
+    lane_width: float = 0.20
+    """Lane width in m of procedural and OSM maps (the CPM map is fixed at 0.15)."""
+    # intersection and roundabout builders: arms at angles 2*pi*k/n_arms (k=0 east)
     arm_length: float = 1.25
+    """Intersection and roundabout: length in m of each arm's straight lanes."""
     arm_lengths: list[float] = field(default_factory=list)
+    """Per-arm lengths in m: arm k is arm_lengths[k % len] long (empty: arm_length for all)."""
     n_arms: int = 4
-    junction_offset: float = 0.45  # intersection: junction center to where the arms start
-    # roundabout builder
-    radius: float = 0.55  # ring center-line radius
-    entry_radius: float = 0.35  # arcs joining the arms to the ring
-    # on-ramp builder
+    """Intersection and roundabout: number of arms, at angles 2 pi k / n_arms (k = 0 east)."""
+    junction_offset: float = 0.45
+    """Intersection: distance in m from the junction's center to where the arms start."""
+    radius: float = 0.55
+    """Roundabout: the ring's center-line radius in m."""
+    entry_radius: float = 0.35
+    """Roundabout: radius in m of the arcs joining the arms to the ring."""
     n_ramps: int = 2
+    """On-ramp: number of ramps joining the main road."""
     main_length: float = 4.1
-    ramp_drop: float = 1.63  # ramp start below the main road's center line
-    ramp_angle: float = 45.0  # degrees
-    ramp_radius: float = 0.8  # bend onto the main road
-    # OSM file (kind=osm): path, and optional explicit routes as lists of way/lanelet ids
+    """On-ramp: length in m of the main road."""
+    ramp_drop: float = 1.63
+    """On-ramp: how far in m below the main road's center line a ramp starts."""
+    ramp_angle: float = 45.0
+    """On-ramp: the ramps' angle to the main road, in degrees."""
+    ramp_radius: float = 0.8
+    """On-ramp: radius in m of the bend onto the main road."""
     path: str = ""
+    """kind=osm: the OSM file (SigmaRL center-line ways or Lanelet2 relations)."""
     routes: list[Any] = field(default_factory=list)
+    """kind=osm: routes as lists of way/lanelet ids (last id = first: a loop); empty: all from the lanelet graph."""
 
 
 @dataclass
@@ -61,15 +78,25 @@ class ObsConfig:
     """Observation design: the paper's five strategies as flags (all on = M0)."""
 
     preset: str = "full"
-    ego_view: bool = True  # E
-    vertices: bool = True  # V
-    distance_to_agents: bool = True  # DA
-    distance_to_boundaries: bool = True  # DB
-    distance_to_center_line: bool = True  # DC
-    n_nearest: int = 2  # K observed neighbours
-    n_ref_points: int = 3  # short-term reference points
-    ref_point_stride: int = 2  # resampled points between reference points (2 x 0.08 m)
-    noise: float = 0.02  # total width of the zero-mean uniform noise on every entry
+    """The conf/obs preset this started from (full, no_ego_view, ...); only a starting point, the flags decide."""
+    ego_view: bool = True
+    """E: observe in the ego vehicle's frame (false: a bird's-eye view)."""
+    vertices: bool = True
+    """V: observe the other vehicles' corner vertices."""
+    distance_to_agents: bool = True
+    """DA: observe the distances to the nearest other vehicles."""
+    distance_to_boundaries: bool = True
+    """DB: observe the distances to the lane boundaries (false: boundary points instead)."""
+    distance_to_center_line: bool = True
+    """DC: observe the distance to the route's center line."""
+    n_nearest: int = 2
+    """K: how many nearest other vehicles are observed."""
+    n_ref_points: int = 3
+    """How many short-term reference points on the center line are observed."""
+    ref_point_stride: int = 2
+    """Resampled center-line points between reference points (2 x 0.08 m)."""
+    noise: float = 0.02
+    """Total width of the zero-mean uniform noise added to every observation entry."""
 
 
 @dataclass
@@ -78,12 +105,15 @@ class EnvConfig:
     `eval.*` and the scenarios; the number of training environments is `ppo.num_envs`)."""
 
     n_agents: int = 4
-    max_steps: int = 128  # training episode length (evaluation: eval.steps)
-    # Where vehicles start: training on non-loop routes from spawn_start_m up
-    # to spawn_end_fraction of the route; testing anywhere but spawn_margin_m at either end.
+    """Vehicles per training environment."""
+    max_steps: int = 128
+    """Training episode length in steps (evaluation: eval.steps)."""
     spawn_start_m: float = 0.5
+    """Training spawns on non-loop routes start this many m after a route's start."""
     spawn_end_fraction: float = 0.5
+    """Training spawns on non-loop routes end at this fraction of the route's length."""
     spawn_margin_m: float = 0.25
+    """Test spawns keep this many m from either end of a route."""
 
 
 @dataclass
@@ -104,46 +134,74 @@ class NetworkConfig:
 
 @dataclass
 class PPOConfig:
+    """MAPPO's training budget and update (the paper's settings by default)."""
+
     iterations: int = 250
-    frames_per_iteration: int = 4096  # num_envs x rollout steps (128, one training episode)
-    num_envs: int = 32  # parallel environments while training
+    """Training iterations (collection + update)."""
+    frames_per_iteration: int = 4096
+    """Frames collected per iteration: num_envs x rollout steps (128, one training episode)."""
+    num_envs: int = 32
+    """Parallel environments while training."""
     epochs: int = 60
+    """PPO epochs over each iteration's frames."""
     minibatch_size: int = 512
+    """Frames per minibatch of the PPO update."""
     lr: float = 2e-4
+    """Learning rate at the first iteration (linear decay to lr_final)."""
     lr_final: float = 1e-5
+    """Learning rate at the last iteration."""
     max_grad_norm: float = 1.0
+    """Gradients are clipped to this norm."""
     clip_epsilon: float = 0.2
+    """PPO's clipping of the probability ratio."""
     gamma: float = 0.99
+    """Discount factor."""
     lmbda: float = 0.9
+    """GAE's lambda."""
     entropy_coef: float = 1e-4
+    """Weight of the entropy bonus in the loss."""
     normalize_advantage: bool = False
-    loss: str = "lean"  # lean: the PPO loss on plain tensors | torchrl: torchrl's ClipPPOLoss (same maths)
-    # fp32 | bf16: the networks' forward passes in the PPO update under bfloat16 autocast
-    # (log-probabilities, ratios, advantages, losses stay fp32; lean loss only) | auto: bf16
-    # where the CPU has native bf16 (avx512_bf16 / amx_bf16) or the GPU supports it
+    """Normalise advantages per minibatch."""
+    loss: str = "lean"
+    """lean: the PPO loss on plain tensors | torchrl: torchrl's ClipPPOLoss (same maths, slower)."""
     precision: str = "fp32"
+    """fp32 | bf16: the update's forward passes under bfloat16 autocast (lean loss) | auto: bf16 where native."""
+    # bf16 keeps log-probabilities, ratios, advantages and losses in fp32; auto picks bf16 where
+    # the CPU has native bf16 (avx512_bf16 / amx_bf16) or the GPU supports it
     checkpoint_every: int = 5
-    stop_after: int = 0  # >0: stop (as if interrupted) once this many iterations are done
+    """Write the resume point checkpoint.pt every this many iterations."""
+    stop_after: int = 0
+    """>0: stop (as if interrupted, resumable) once this many iterations are done."""
 
 
 @dataclass
 class EvalConfig:
     """Evaluation protocol: every model faces the same scenarios, simulations and seed."""
 
-    # scenario names (conf/scenario/<name>.yaml); conf/config.yaml takes the study's
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
+    """Scenario names (conf/scenario/<name>.yaml); conf/config.yaml takes the study's."""
     n_sims: int = 32
+    """Simulations per scenario."""
     steps: int = 1200
+    """Steps per simulation."""
     seed: int = 2024
-    checkpoint: str = "best"  # best (the paper's choice) | final
+    """Seed of every evaluation, so every model faces the same initial states."""
+    checkpoint: str = "best"
+    """Which checkpoint is evaluated: best (the paper's choice) | final."""
 
 
 @dataclass
 class TrackingConfig:
-    tracking_uri: str = ""  # empty: MLflow's default (a local SQLite mlflow.db)
+    """Where runs are recorded."""
+
+    tracking_uri: str = ""
+    """The MLflow store or server (empty: MLflow's default, a local SQLite mlflow.db)."""
     experiment: str = "sigmarl-ablation"
-    enabled: bool = True  # false: the run folders are the only record
-    backend: str = "mlflow"  # or package.module:Class, a sigmarl.tracking.Tracker of your own
+    """The experiment's name; also names runs/<experiment>/ and reports/<experiment>/."""
+    enabled: bool = True
+    """false: no tracker; the run folders are the only record."""
+    backend: str = "mlflow"
+    """mlflow, or package.module:Class naming a sigmarl.tracking.Tracker of your own."""
 
 
 @dataclass
@@ -152,28 +210,31 @@ class StudyConfig:
     with which seeds, on which scenarios, and how it decides."""
 
     name: str = "paper"
-    # label -> Hydra overrides of the training config, in table order; a label names the
-    # run folders (<runs_root>/<label>/seed<k>) and the table's column
+    """The study's name (conf/study/<name>.yaml)."""
     variants: dict[str, list[str]] = field(default_factory=dict)
-    baseline: str = "M0"  # what every other variant is compared with
-    # variant -> its own baseline, where it is not `baseline` (e.g. a factorial study compares
-    # within each level of the other factor: {M4-paper: M0-paper, M4: M0})
+    """Label -> Hydra overrides of the training config, in table order; a label names run folders and a column."""
+    baseline: str = "M0"
+    """The variant every other variant is compared with."""
     baselines: dict[str, str] = field(default_factory=dict)
-    # name -> [x, y]: does x's comparison with its baseline differ from y's with its own?
-    # (e.g. {M4: [M4-paper, M4]}: do the paper's rules change what M4 leaves out?)
+    """Variant -> its own baseline where it is not `baseline` (a factorial study: {M4-paper: M0-paper})."""
     interactions: dict[str, list[str]] = field(default_factory=dict)
+    """Name -> [x, y]: does x's comparison with its baseline differ from y's with its own?"""
     seeds: list[int] = field(default_factory=lambda: [0])
+    """Seeds of every variant (seeds=[0,1,2] on the command line)."""
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
-    metrics: list[str] = field(default_factory=lambda: ["CR_total"])  # the metrics decided on
-    # equivalence margins in the table's units (percentage points, cm, m/s)
+    """The scenarios every variant is evaluated on."""
+    metrics: list[str] = field(default_factory=lambda: ["CR_total"])
+    """The metrics each comparison decides on."""
     margins: dict[str, float] = field(default_factory=lambda: {"CR_total": 0.1, "CD": 0.1, "AS": 0.01})
-    max_seeds: int = 10  # seeds=auto adds seeds up to this many per variant
-    # a folder of trained runs (<label>/seed<k>/) that the study evaluates instead of training
-    # (the same label, seed and training config; e.g. results/paper-budget)
+    """Equivalence margins per metric, in the table's units (percentage points, cm, m/s)."""
+    max_seeds: int = 10
+    """seeds=auto adds seeds up to this many per variant."""
     checkpoints_from: str = ""
-    # set by `sigmarl sweep` for its jobs: the plan file and this job's key in it
+    """A folder of trained runs (<label>/seed<k>/) to evaluate instead of training (e.g. results/paper-budget)."""
     job: str = ""
+    """Set by `sigmarl sweep` for its jobs: this job's key in the plan file."""
     plan: str = ""
+    """Set by `sigmarl sweep` for its jobs: the plan file."""
 
 
 @dataclass
@@ -183,35 +244,42 @@ class RulesConfig:
     observation switches of the checkpoint it evaluates; it always measures with our
     contacts, per-agent flags and fresh observations (`sigmarl.env.paper_rules`)."""
 
-    # paper: speed command in [-1, 1]; VMAS drag 0.25 makes v = delta/dt - 0.25 v_prev (steady
-    # 0.8 c through an alternating transient c, 0.75 c, 0.81 c, ...); the yaw rate likewise
+    # VMAS drag 0.25 makes v = delta/dt - 0.25 v_prev: steady 0.8 c through an alternating
+    # transient c, 0.75 c, 0.81 c, ...; the yaw rate likewise
     drag_dynamics: bool = False
-    speed_normaliser_one: bool = False  # paper: observed speeds and velocities / 1.0 (ours / 0.8)
-    unsigned_speed: bool = False  # paper: ego view observes |v| (ours the signed forward speed)
-    # paper: ego view observes another's velocity as |v_j| (cos, sin)(psi_j - psi_i), along its
-    # heading and unsigned (ours: its velocity vector along its course, in the ego frame)
+    """Paper: speed command in [-1, 1] through VMAS's drag (steady 0.8 of the command)."""
+    speed_normaliser_one: bool = False
+    """Paper: observed speeds and velocities divided by 1.0 (ours by 0.8)."""
+    unsigned_speed: bool = False
+    """Paper: the ego view observes |v| (ours the signed forward speed)."""
     others_velocity_heading: bool = False
-    unwrapped_headings: bool = False  # paper: headings and relative headings never wrapped
-    one_sided_noise: bool = False  # paper: + obs.noise x U[0, 1) (mean +0.01; ours zero-mean)
-    # paper: center line at raw map vertices; reference points the vertices +2, +4, +6 from
-    # the start of the closest segment; center-line distance and progress on that polyline
+    """Paper: another's velocity observed as |v_j| (cos, sin)(psi_j - psi_i), along its heading, unsigned."""
+    unwrapped_headings: bool = False
+    """Paper: headings and relative headings never wrapped to (-pi, pi]."""
+    one_sided_noise: bool = False
+    """Paper: noise + obs.noise x U[0, 1) (mean +0.01; ours zero-mean)."""
     raw_center_line: bool = False
-    # paper (M4): 5 raw boundary vertices, one before to three after the start of the
-    # boundary's own closest segment (ours: resampled, through the center-line index)
+    """Paper: center line at raw map vertices; reference points the vertices +2, +4, +6 from the closest segment."""
     own_boundary_index: bool = False
-    test_world_size: bool = False  # paper: bird's-eye view / the test map's size in evaluation
-    # paper: collisions are strict crossings of edges (agent-agent: the rectangles' edges;
-    # agent-lane: rectangle edges against the whole raw boundary polylines); touching and
-    # containment do not count
+    """Paper (M4): 5 raw boundary vertices from the boundary's own closest segment (ours: resampled)."""
+    test_world_size: bool = False
+    """Paper: the bird's-eye view normalised by the test map's size in evaluation."""
     strict_crossings: bool = False
-    env_lane_flag: bool = False  # paper: the lane-collision info flag is per environment
-    lagged_steering: bool = False  # paper: steering penalty on delta_{t-1} - delta_{t-2}
-    timeout_terminal: bool = False  # paper: a training time-out is terminal (ours: truncated)
-    stale_respawn_obs: bool = False  # paper: test-mode respawns return the pre-respawn observation
+    """Paper: a collision is a strict crossing of edges; touching and containment do not count."""
+    env_lane_flag: bool = False
+    """Paper: the lane-collision info flag is per environment (ours per agent)."""
+    lagged_steering: bool = False
+    """Paper: the steering penalty on delta_{t-1} - delta_{t-2} (ours delta_t - delta_{t-1})."""
+    timeout_terminal: bool = False
+    """Paper: a training time-out is terminal (ours: truncated, bootstrapped)."""
+    stale_respawn_obs: bool = False
+    """Paper: test-mode respawns return the pre-respawn observation."""
 
 
 @dataclass
 class Config:
+    """The whole config of one command: the groups and the top-level keys."""
+
     map: MapConfig = field(default_factory=MapConfig)
     obs: ObsConfig = field(default_factory=ObsConfig)
     env: EnvConfig = field(default_factory=EnvConfig)
@@ -221,17 +289,24 @@ class Config:
     eval: EvalConfig = field(default_factory=EvalConfig)
     rules: RulesConfig = field(default_factory=RulesConfig)
     seed: int = 0
+    """The training seed (0..2**32-1)."""
     device: str = "cpu"
+    """Torch device: cpu | cuda | cuda:N."""
     threads: int = 1
+    """Torch threads of every command that computes."""
     resume: bool = False
+    """`sigmarl train`: continue the run folder's training from its checkpoint."""
     study: StudyConfig = field(default_factory=StudyConfig)
-    # The run's label: a study's variant, or (a lone `sigmarl train`) M0..M5 or custom-<hash>
-    # from the obs flags (conf/config.yaml)
     model: str = MISSING
-    overrides: list[str] = field(default_factory=list)  # the variant's overrides (a sweep job's)
-    fingerprint: str = ""  # of the training settings (sigmarl.identity), set at composition
-    runs_root: str = MISSING  # the study's run folders: <runs_root>/<model>/seed<seed>
-    run_dir: str = MISSING  # where checkpoints live; set by conf/config.yaml
+    """The run's label: a study's variant, or (a lone train) M0..M5 or custom-<hash> from the obs flags."""
+    overrides: list[str] = field(default_factory=list)
+    """The variant's overrides (a sweep job's); set by sigmarl."""
+    fingerprint: str = ""
+    """Hash of the training settings (sigmarl.identity); set at composition."""
+    runs_root: str = MISSING
+    """The study's run folders: <runs_root>/<model>/seed<seed> (default runs/<experiment>)."""
+    run_dir: str = MISSING
+    """The run folder, where checkpoints live; set by conf/config.yaml."""
 
 
 def as_config(cfg: Config | DictConfig) -> Config:
