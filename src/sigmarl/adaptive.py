@@ -22,7 +22,7 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
-from sigmarl.run import ROWS_FILE, write_atomic
+from sigmarl.run import Run, write_atomic
 
 RECORD = "seeds_auto.json"
 
@@ -100,7 +100,7 @@ def _rows(plan) -> pd.DataFrame:
     from sigmarl.report.folder import RunFolder, rows_of
 
     frames = [rows_of(RunFolder(j.label, j.seed, Path(j.run_dir))) for j in plan.jobs
-              if (Path(j.run_dir) / ROWS_FILE).is_file()]
+              if Run(j.run_dir).rows_file.is_file()]
     return pd.concat(frames, ignore_index=True)
 
 

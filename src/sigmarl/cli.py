@@ -5,12 +5,11 @@ from __future__ import annotations
 import argparse
 import errno
 import os
-import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sigmarl.errors import SigmarlError, Terminated, handle_sigterm, was_interrupted
+from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
 from sigmarl.paths import add_user_conf_dir
 from sigmarl.resources import use_threads
 
@@ -326,11 +325,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if (full := _disk_full(e)) is not None:
             print(f"sigmarl: error: {full}", file=sys.stderr)
             return 2
-        if not was_interrupted(e):
+        if (stop := interruption(e)) is None:
             raise
-        terminated = isinstance(e, Terminated) or not isinstance(e, KeyboardInterrupt)
-        print(f"sigmarl: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
-        return 128 + (signal.SIGTERM if terminated else signal.SIGINT)
+        said, code = exit_code(stop)
+        print(f"sigmarl: {said}", file=sys.stderr)
+        return code
     return rc if isinstance(rc, int) else 0
 
 

@@ -1,5 +1,19 @@
-"""Errors a user can cause (the CLI prints their message alone and exits non-zero), and how
-an interruption (Ctrl-C, SIGTERM) reaches the code."""
+"""Errors a user can cause (the CLI prints their message alone and exits non-zero), and the
+interrupt policy: how an interruption reaches the code and what each kind leaves behind.
+
+- SIGINT (Ctrl-C) and SIGTERM (`kill`, `timeout`, SLURM) are raised as KeyboardInterrupt and
+  `Terminated` in the main thread, after any `held_signals` block. What runs then ends its
+  tracker runs KILLED (`end_status`), removes nothing it wrote, and the command exits 130 or
+  143 (`exit_code`). The run folder keeps its last `checkpoint.pt`.
+- kill -9 (and the OOM killer) runs no handler: the tracker's runs stay RUNNING until a re-run
+  reopens them, and the folder's lock goes with the process. Every file is written whole or
+  not at all (`sigmarl.run.write_atomic`), except metrics.csv's last line, which may be cut.
+- A resume reads only `checkpoint.pt` and the metrics.csv rows up to its iteration (later
+  ones are computed again); a row missing at or before it is refused, never skipped.
+
+Whatever catches a BaseException asks `interruption(e)` whether it is one of these: every
+place that handles interruptions goes through the helpers below.
+"""
 
 import signal
 import threading
@@ -94,3 +108,30 @@ def handle_sigterm() -> None:
         signal.signal(signal.SIGTERM, on_signal)
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             signal.signal(signal.SIGINT, on_signal)
+
+
+def interruption(error: BaseException) -> KeyboardInterrupt | None:
+    """The interruption `error` is or stands for (itself, or `Terminated` for a SIGTERM that a
+    library turned into its own error), or None for a real failure."""
+    if not was_interrupted(error):
+        return None
+    return error if isinstance(error, KeyboardInterrupt) else Terminated()
+
+
+def raise_if_interrupted(error: BaseException) -> None:
+    """Raise the interruption `error` stands for (chained to it); return if it is none."""
+    stop = interruption(error)
+    if stop is error:
+        raise error
+    if stop is not None:
+        raise stop from error
+
+
+def end_status(error: BaseException) -> str:
+    """The tracker status of a run that `error` ended: KILLED (resumable) or FAILED."""
+    return "KILLED" if was_interrupted(error) else "FAILED"
+
+
+def exit_code(error: KeyboardInterrupt) -> tuple[str, int]:
+    """What the command says and returns after an interruption: 128 + the signal's number."""
+    return ("terminated", 128 + signal.SIGTERM) if isinstance(error, Terminated) else ("interrupted", 128 + signal.SIGINT)

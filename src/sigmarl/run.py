@@ -75,6 +75,13 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
+def checkpoint_name(which: str) -> str:
+    """The file of eval.checkpoint (`best` or `final`) in a run folder."""
+    if which not in ("best", "final"):
+        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {which!r}")
+    return BEST_FILE if which == "best" else FINAL_FILE
+
+
 # Locks this process holds: path -> [fd, depth] (flock is per open file, so a second open in
 # the same process would block on its own lock; nested holders share the first).
 _HELD: dict[str, list[int]] = {}
@@ -95,6 +102,41 @@ class Run:
 
     def path(self, name: str) -> Path:
         return self.dir / name
+
+    # Each file of the folder, by what it holds (the only place that joins folder and name).
+    config_file = property(lambda self: self.path(CONFIG_FILE))
+    metrics_file = property(lambda self: self.path(METRICS_FILE))
+    resume_file = property(lambda self: self.path(RESUME_FILE))
+    best_file = property(lambda self: self.path(BEST_FILE))
+    final_file = property(lambda self: self.path(FINAL_FILE))
+    run_id_file = property(lambda self: self.path(RUN_ID_FILE))
+    rows_file = property(lambda self: self.path(ROWS_FILE))
+    rows_meta_file = property(lambda self: self.path(ROWS_META))
+    done_file = property(lambda self: self.path(DONE_FILE))
+    failed_file = property(lambda self: self.path(FAILED_FILE))
+
+    def checkpoint(self, which: str) -> Path:
+        """The policy a run is evaluated with: eval.checkpoint `best` or `final`."""
+        return self.path(checkpoint_name(which))
+
+    def mark_done(self, eval_run: str | None) -> None:
+        """The sweep's mark: trained and evaluated (the evaluation's tracker run, if any)."""
+        self.write(DONE_FILE, f"{eval_run or ''}\n")
+
+    def mark_failed(self, message: str) -> None:
+        """The sweep's mark: the job failed; its message is the summary's line."""
+        self.write(FAILED_FILE, message)
+
+    def clear_failed(self) -> None:
+        self.failed_file.unlink(missing_ok=True)
+
+    def failure(self) -> str | None:
+        """The last line of the job's failure, or None if it is not marked failed."""
+        try:
+            lines = self.failed_file.read_text(encoding="utf-8", errors="replace").strip().splitlines()
+        except FileNotFoundError:
+            return None
+        return (lines or ["(no message)"])[-1][:200]
 
     @property
     def state(self) -> str:

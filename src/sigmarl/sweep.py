@@ -42,7 +42,7 @@ from omegaconf import DictConfig
 
 from sigmarl.ablation import check_eval
 from sigmarl.config import Config, StudyConfig, as_config
-from sigmarl.errors import SigmarlError, Terminated, was_interrupted
+from sigmarl.errors import SigmarlError, interruption, raise_if_interrupted
 from sigmarl.progress import emit
 from sigmarl.resources import (
     end_with_the_sweep,
@@ -52,7 +52,7 @@ from sigmarl.resources import (
     sweep_owner_override,
     use_threads,
 )
-from sigmarl.run import CONFIG_FILE, DONE_FILE, FAILED_FILE, ROWS_FILE, ROWS_META, Run, write_atomic
+from sigmarl.run import Run, write_atomic
 
 PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
 
@@ -116,14 +116,14 @@ def run_job(cfg: DictConfig | Config) -> str:
 
 
 def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
-    from sigmarl.evaluation.protocol import checkpoint_name, evaluate_and_log
+    from sigmarl.evaluation.protocol import evaluate_and_log
     from sigmarl.tracking import open_tracker, records
-    from sigmarl.training import checkpoint as ckpt
     from sigmarl.training.loop import train
 
-    (run_dir / FAILED_FILE).unlink(missing_ok=True)
+    run = Run(run_dir)
+    run.clear_failed()
     try:
-        cfg = replace(cfg, resume=(run_dir / ckpt.RESUME_FILE).exists(), threads=job_threads(cfg.threads))
+        cfg = replace(cfg, resume=run.resume_file.exists(), threads=job_threads(cfg.threads))
         use_threads(cfg.threads)  # training and this job's evaluation
         if cfg.study.checkpoints_from:  # a study that evaluates trained runs, not trains them
             return _evaluate_trained(cfg, run_dir)
@@ -133,24 +133,22 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
             return "interrupted"
         if result.run_id and (done := tracker.finished_evaluation(result.run_id, records.eval_key(cfg.eval))):
             emit(f"{run_dir}: already evaluated")
-            write_atomic(run_dir / DONE_FILE, f"{done}\n")
+            run.mark_done(done)
             return "done"
-        path = run_dir / checkpoint_name(cfg.eval.checkpoint)
-        _, eval_run = evaluate_and_log(path, cfg, result.run_id, rows_file=run_dir / ROWS_FILE, tracker=tracker)
-        write_atomic(run_dir / DONE_FILE, f"{eval_run or ''}\n")
+        _, eval_run = evaluate_and_log(run.checkpoint(cfg.eval.checkpoint), cfg, result.run_id,
+                                       rows_file=run.rows_file, tracker=tracker)
+        run.mark_done(eval_run)
         return "done"
     except BaseException as e:
-        if was_interrupted(e):  # Ctrl-C or SIGTERM: interrupted, not failed; a re-run resumes
+        if interruption(e) is not None:  # Ctrl-C or SIGTERM: interrupted, not failed; a re-run resumes
             emit(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", logging.WARNING)
-            if isinstance(e, KeyboardInterrupt):
-                raise
-            raise Terminated() from e
+            raise_if_interrupted(e)
         if not isinstance(e, Exception):
             raise
         message = str(e) if isinstance(e, SigmarlError) else traceback.format_exc()
         try:
             run_dir.mkdir(parents=True, exist_ok=True)
-            write_atomic(run_dir / FAILED_FILE, message)
+            run.mark_failed(message)
         except OSError:  # an unwritable run folder is itself the error reported
             pass
         emit(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", logging.ERROR)
@@ -163,21 +161,22 @@ def _evaluate_trained(cfg: Config, run_dir: Path) -> str:
     leaving the trained run as it is."""
     import torch
 
-    from sigmarl.evaluation.protocol import checkpoint_name, evaluate_and_log
+    from sigmarl.evaluation.protocol import evaluate_and_log
 
-    source = Path(cfg.study.checkpoints_from) / cfg.model / f"seed{cfg.seed}"
-    trained = _earlier_config(source)
-    if trained is None or not (source / checkpoint_name(cfg.eval.checkpoint)).is_file():
-        raise SigmarlError(f"{source} holds no trained run to evaluate (study.checkpoints_from)")
+    source = Run(Path(cfg.study.checkpoints_from) / cfg.model / f"seed{cfg.seed}")
+    run = Run(run_dir)
+    trained = _earlier_config(source.dir)
+    if trained is None or not source.checkpoint(cfg.eval.checkpoint).is_file():
+        raise SigmarlError(f"{source.dir} holds no trained run to evaluate (study.checkpoints_from)")
     if trained.fingerprint != cfg.fingerprint:
         from sigmarl.identity import differences
 
-        raise SigmarlError(f"{source} was trained with another config ({differences(trained, cfg)})")
+        raise SigmarlError(f"{source.dir} was trained with another config ({differences(trained, cfg)})")
     torch.set_num_threads(cfg.threads)
-    write_atomic(run_dir / CONFIG_FILE, (source / CONFIG_FILE).read_text())
-    _, eval_run = evaluate_and_log(source / checkpoint_name(cfg.eval.checkpoint), cfg, None, progress=False,
-                                   rows_file=run_dir / ROWS_FILE)
-    write_atomic(run_dir / DONE_FILE, f"{eval_run or ''}\n")
+    write_atomic(run.config_file, source.config_file.read_text())
+    _, eval_run = evaluate_and_log(source.checkpoint(cfg.eval.checkpoint), cfg, None, progress=False,
+                                   rows_file=run.rows_file)
+    run.mark_done(eval_run)
     return "done"
 
 
@@ -255,6 +254,20 @@ def _slug(key: str, value: str) -> str:
     return f"{leaf}-" + (re.sub(r"[^A-Za-z0-9.]+", "-", value).strip("-") or "x")
 
 
+def _seed_list(values: Sequence[object]) -> list[int]:
+    """The seeds as whole numbers in the range `seed` takes, or one line naming the bad one."""
+    from sigmarl.validate import SEED_MAX
+
+    out = []
+    for value in values:
+        text = str(value).strip()
+        if not re.fullmatch(r"\d{1,10}", text) or int(text) > SEED_MAX:
+            raise SigmarlError(f"seeds: {text!r} is not a seed (a whole number in 0..{SEED_MAX}); "
+                               "give e.g. seeds=[0,1,2]")
+        out.append(int(text))
+    return out
+
+
 def plan_sweep(user: Sequence[str], cores: int | None = None,
                seeds_by_label: dict[str, list[int]] | None = None) -> SweepPlan:
     """Every job of `sigmarl sweep <user overrides>`, composed and checked; nothing is written.
@@ -309,7 +322,7 @@ def plan_sweep(user: Sequence[str], cores: int | None = None,
             raise SigmarlError(f"unknown model(s) {unknown}; study {study.name!r} declares "
                                f"{', '.join(variants) or 'none'}")
         variants = {m: variants[m] for m in dict.fromkeys(models)}
-    seed_list = [int(s) for s in (seeds if seeds is not None else study.seeds)]
+    seed_list = _seed_list(seeds if seeds is not None else study.seeds)
     if not seed_list:
         raise SigmarlError(f"study {study.name!r} declares no seeds; give seeds=[...]")
 
@@ -373,7 +386,7 @@ def _earlier_config(run_dir: Path) -> Config | None:
     from sigmarl.config import config_from_dict
     from sigmarl.identity import fingerprint
 
-    path = run_dir / CONFIG_FILE
+    path = Run(run_dir).config_file
     if not path.is_file():
         return None
     try:
@@ -442,14 +455,14 @@ def finished(job: Job) -> bool:
     """Whether the job's run folder holds this very job, done: `evaluated.txt`, no `failed.txt`,
     a config.yaml of the same fingerprint (checked when the plan was made) and rows measured
     under the job's evaluation protocol."""
-    run_dir = Path(job.run_dir)
-    if not (run_dir / DONE_FILE).is_file() or (run_dir / FAILED_FILE).exists():
+    run = Run(job.run_dir)
+    if not run.done_file.is_file() or run.failed_file.exists():
         return False
     try:
-        evaluated = json.loads((run_dir / ROWS_META).read_text(encoding="utf-8"))
+        evaluated = json.loads(run.rows_meta_file.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
-    return (run_dir / CONFIG_FILE).is_file() and evaluated.get("eval_key") == job.eval_key
+    return run.config_file.is_file() and evaluated.get("eval_key") == job.eval_key
 
 
 def job_overrides(user_overrides: Sequence[str]) -> tuple[list[str], list[list[str]]]:
@@ -472,11 +485,12 @@ def summarise(plan: SweepPlan) -> int:
     width = max([len(j.label) for j in plan.jobs] + [6])
     print("\nsweep summary:")
     for job in plan.jobs:
-        run_dir = Path(job.run_dir)
-        if (run_dir / FAILED_FILE).exists():
-            state = "FAILED: " + (run_dir / FAILED_FILE).read_text().strip().splitlines()[-1][:200]
+        run = Run(job.run_dir)
+        run_dir = run.dir
+        if (failure := run.failure()) is not None:
+            state = "FAILED: " + failure
             bad += 1
-        elif (run_dir / DONE_FILE).exists():
+        elif run.done_file.exists():
             state = "trained and evaluated"
         else:
             state = "unfinished (run the sweep again to resume)"

@@ -11,6 +11,8 @@ hold); their allowed values are the `Literal` types below, checked here.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from typing import Literal, get_args
 
 from sigmarl.ablation import check_eval
@@ -58,6 +60,7 @@ def device_type(device: str) -> str:
 
 def check(cfg: Config) -> Config:
     """`cfg` if every value is usable; otherwise one SigmarlError naming the key."""
+    check_finite(cfg)
     if not 0 <= cfg.seed <= SEED_MAX:
         raise SigmarlError(f"seed must be in 0..{SEED_MAX}, got {_short(cfg.seed)}")
     if cfg.threads < 1:
@@ -89,6 +92,24 @@ def check(cfg: Config) -> Config:
     tracker_class(cfg.tracking.backend)  # a backend that cannot be imported ends here, not after training
     _check_study(cfg)
     return cfg
+
+
+def check_finite(node: object, prefix: str = "") -> None:
+    """Every float of a config (in records, lists and dicts) is a finite number: a NaN passes
+    every range check (all comparisons with it are false) and fails deep inside training."""
+    if dataclasses.is_dataclass(node):
+        items = [(f.name, getattr(node, f.name)) for f in dataclasses.fields(node)]
+    elif isinstance(node, dict):
+        items = list(node.items())
+    elif isinstance(node, list | tuple):
+        items = list(enumerate(node))
+    else:
+        return
+    for key, value in items:
+        name = f"{prefix}[{key}]" if isinstance(key, int) else f"{prefix}.{key}".lstrip(".")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise SigmarlError(f"{name} must be a finite number, got {value}")
+        check_finite(value, name)
 
 
 def _check_study(cfg: Config) -> None:
@@ -139,6 +160,7 @@ def _check_map(cfg: Config) -> None:
 
 def check_map(m: MapConfig) -> MapConfig:
     """`m` if its values are usable (a map config read on its own, e.g. by `sigmarl maps list`)."""
+    check_finite(m, "map")
     kind = choice("map.kind", m.kind, MapKind)
     if kind == "cpm":
         choice("map.route_set", m.route_set, RouteSet)
@@ -173,6 +195,9 @@ def _check_ppo(cfg: Config) -> None:
 def _check_experiment(name: str) -> None:
     if not name.strip():
         raise SigmarlError("tracking.experiment is empty")
+    if name in (".", "..") or any(c in name for c in "/\\\0"):
+        raise SigmarlError(f"tracking.experiment={name!r} names a folder inside runs/: no '/', '\\', "
+                           "'..' or NUL; choose a plain name such as my-study")
     if len(name.encode()) > EXPERIMENT_MAX_BYTES:
         raise SigmarlError(f"tracking.experiment is {len(name.encode())} bytes long ({name[:40]!r}...); "
                            f"at most {EXPERIMENT_MAX_BYTES} (it names the folder runs/<experiment>)")

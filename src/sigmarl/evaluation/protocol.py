@@ -25,7 +25,7 @@ from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noqa: F401 (their old home)
 from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
-from sigmarl.run import ROWS_FILE, ROWS_META, write_atomic
+from sigmarl.run import ROWS_FILE, ROWS_META, Run, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker, open_tracker, records
 
@@ -71,7 +71,7 @@ def rows_file_for(checkpoint: Path, cfg: Config) -> Path:
     """Where `sigmarl evaluate` keeps the rows: evaluation_rows.csv beside the checkpoint,
     unless that holds another protocol's rows (then evaluation_rows-<protocol key>.csv)."""
     key = records.eval_key(cfg.eval)
-    default = checkpoint.parent / ROWS_FILE
+    default = Run(checkpoint.parent).rows_file
     meta = _read_meta(default)
     return default if meta is None or meta.get("eval_key") == key else \
         checkpoint.parent / f"evaluation_rows-{key}.csv"

@@ -12,36 +12,22 @@ from pathlib import Path
 
 from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
-
-CHECKPOINTS = ("best", "final")
-
-
-def checkpoint_name(which: str) -> str:
-    """The file name of eval.checkpoint (`best` or `final`) in a run folder."""
-    _check_which(which)
-    from sigmarl.training import checkpoint as ckpt
-
-    return ckpt.BEST_FILE if which == "best" else ckpt.FINAL_FILE
-
-
-def _check_which(which: str) -> None:
-    if which not in CHECKPOINTS:
-        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {which!r}")
+from sigmarl.run import Run, checkpoint_name
 
 
 def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = None) -> Path:
     """A checkpoint file from a path, a training run folder, or an MLflow training run id."""
-    _check_which(cfg.eval.checkpoint)
+    checkpoint_name(cfg.eval.checkpoint)  # a wrong choice is answered first
     path = Path(target)
     if path.is_file():
         return path
     if not path.is_dir() and ("/" in target or target.endswith(".pt")):
         raise SigmarlError(f"checkpoint not found: {target}")
     if path.is_dir():
-        name = checkpoint_name(cfg.eval.checkpoint)
-        if (path / name).is_file():
-            return path / name
-        raise SigmarlError(f"{path} holds no {name} (has the training finished? see eval.checkpoint)")
+        found = Run(path).checkpoint(cfg.eval.checkpoint)
+        if found.is_file():
+            return found
+        raise SigmarlError(f"{path} holds no {found.name} (has the training finished? see eval.checkpoint)")
     from sigmarl.tracking.store import missing_store
 
     if db := missing_store(cfg):  # nowhere to look the run id up: create no empty store

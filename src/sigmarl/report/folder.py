@@ -26,7 +26,7 @@ from sigmarl.ablation import MODELS, TIMINGS
 from sigmarl.env.params import RULES_REVISION, VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
-from sigmarl.run import METRICS_FILE, REWARD, ROWS_FILE, ROWS_META
+from sigmarl.run import REWARD, ROWS_FILE, Run
 from sigmarl.scenarios import scenario_names
 
 _SEED_DIR = re.compile(r"seed(-?\d+)")
@@ -115,7 +115,7 @@ def check_rows(rows: pd.DataFrame, path: Path) -> pd.DataFrame:
 def rows_of(run: RunFolder) -> pd.DataFrame:
     """The run's evaluation rows, checked (`check_rows`), and its model and seed checked
     against the folder's names."""
-    path = run.path / ROWS_FILE
+    path = Run(run.path).rows_file
     rows = check_rows(_read_csv(path), path)
     if "seed" not in rows.columns:
         rows.insert(0, "seed", run.seed)
@@ -135,7 +135,7 @@ def rows_of(run: RunFolder) -> pd.DataFrame:
 def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | None]:
     """(model, seed, iteration, reward, seconds) from metrics.csv, or a note why there is none.
     seconds: the iteration's compute time (NaN where metrics.csv has no timings)."""
-    path = run.path / METRICS_FILE
+    path = Run(run.path).metrics_file
     if not path.is_file():
         return None, None
     metrics = _read_csv(path)
@@ -155,7 +155,7 @@ def _rules_of(run: RunFolder) -> int | None:
     """The environment rules its rows were measured under (evaluation.json: `rules`, absent
     before revision 2), or None where the folder does not say (a folder without the file)."""
     try:
-        meta = json.loads((run.path / ROWS_META).read_text())
+        meta = json.loads(Run(run.path).rows_meta_file.read_text())
     except (OSError, ValueError):
         return None
     return int(meta.get("rules", 1)) if isinstance(meta, dict) else None
@@ -168,7 +168,7 @@ def read_results(root: Path) -> FolderResults:
     frames, curves, notes = [], [], []
     seen: dict[tuple[str, int], Path] = {}
     for run in runs:
-        if not (run.path / ROWS_FILE).is_file():
+        if not Run(run.path).rows_file.is_file():
             notes.append(f"{run.path} has no {ROWS_FILE} (not evaluated yet): left out")
             continue
         rules = _rules_of(run)
@@ -213,7 +213,8 @@ def read_many(roots: list[Path]) -> FolderResults:
 def checkpoint_of(runs: list[RunFolder], model: str, name: str) -> Path | None:
     """`name` (best.pt / final.pt) of `model`'s lowest seed in the folder, if present."""
     for run in runs:
-        if (run.path / name).is_file() and (run.path / ROWS_FILE).is_file():
+        folder = Run(run.path)
+        if folder.path(name).is_file() and folder.rows_file.is_file():
             if str(rows_of(run)["model"].iloc[0]) == model:
-                return run.path / name
+                return folder.path(name)
     return None

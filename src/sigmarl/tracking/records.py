@@ -24,7 +24,7 @@ from sigmarl import crash
 from sigmarl.ablation import TIMINGS
 from sigmarl.config import EvalConfig, as_dict
 from sigmarl.env.params import RULES_REVISION
-from sigmarl.errors import SigmarlError, was_interrupted
+from sigmarl.errors import SigmarlError, end_status
 from sigmarl.metrics import METRIC_COLUMNS, METRICS
 from sigmarl.run import REWARD, ROWS_FILE
 from sigmarl.scenarios import scenario, scenario_names
@@ -123,7 +123,7 @@ def _ended(client, rid: str) -> Iterator[None]:
         client.set_terminated(rid, "FINISHED")
     except BaseException as e:
         try:
-            client.set_terminated(rid, "KILLED" if was_interrupted(e) else "FAILED")
+            client.set_terminated(rid, end_status(e))
         except Exception:
             pass
         raise

@@ -17,7 +17,7 @@ from typing import Any
 
 from sigmarl.ablation import obs_strategies
 from sigmarl.config import Config, as_dict
-from sigmarl.errors import SigmarlError, Terminated, was_interrupted
+from sigmarl.errors import SigmarlError, raise_if_interrupted
 from sigmarl.run import REWARD
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import experiment_id
@@ -97,8 +97,7 @@ class MlflowTrainingRun(TrainingRun):
         try:
             return getattr(self.client, method)(self.run_id, *args, **kwargs)
         except Exception as e:  # keep training; the run folder is the primary record
-            if was_interrupted(e):  # a SIGTERM inside MLflow's store code, wrapped by it
-                raise Terminated() from e
+            raise_if_interrupted(e)  # a SIGTERM inside MLflow's store code, wrapped by it
             if not self._warned:
                 print(f"sigmarl: warning: MLflow {method} failed ({e}); training goes on "
                       "(a re-run brings the MLflow run up to date)", file=sys.stderr)
