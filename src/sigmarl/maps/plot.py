@@ -1,4 +1,4 @@
-"""Map figures: lanes in grey, routes in colour (`sigmarl maps show`, README pictures).
+"""Map figures: lanes in grey, routes in colour (`sigmarl maps show`, the docs pictures).
 
 Figures are built on matplotlib's object API with the Agg canvas, never
 pyplot, so drawing works headless and leaves the global backend alone.

@@ -1,0 +1,103 @@
+"""The generated parts of the documentation, made from the code at every `mkdocs build`, so
+they cannot drift: the command line (from sigmarl's argparse parser), every config key (type,
+default and help line, from the config dataclasses) and the files of a run folder (from
+`sigmarl.run`). A page asks for one with a marker line, e.g. `<!-- generated: config -->`.
+
+mkdocs.yml loads this file as a hook (`on_page_markdown`); `python scripts/docs_reference.py
+NAME` prints one part.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MARKER = re.compile(r"^<!-- generated: ([a-z-]+) -->$", re.M)
+
+
+def _cell(text: object) -> str:
+    """Text for a table cell: pipes escaped, and `<` outside code spans (else HTML)."""
+    parts = str(text).replace("|", "\\|").replace("\n", " ").split("`")
+    return "`".join(p if i % 2 else p.replace("<", "&lt;") for i, p in enumerate(parts))
+
+
+def _argument(action: argparse.Action) -> str:
+    name = ", ".join(f"`{o}`" for o in action.option_strings) or f"`{action.metavar or action.dest}`"
+    if action.choices and not isinstance(action, argparse._SubParsersAction):
+        name += " {" + ", ".join(map(str, action.choices)) + "}"
+    elif action.option_strings and action.nargs != 0 and not isinstance(action, argparse._VersionAction):
+        name += f" `{action.metavar or action.dest.upper()}`"
+    return name
+
+
+def _arguments(parser: argparse.ArgumentParser) -> list[str]:
+    rows = ["| argument | what it does |", "|---|---|"]
+    for action in parser._actions:
+        if isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
+            continue
+        help_text = (action.help or "") % {"prog": parser.prog} if action.help else ""
+        rows.append(f"| {_cell(_argument(action))} | {_cell(help_text)} |")
+    return rows
+
+
+def cli() -> str:
+    """Every command and option, from the parser the command line uses."""
+    from sigmarl.cli import build_parser
+
+    parser = build_parser()
+    out = [f"`{parser.format_usage().strip().removeprefix('usage: ')}`", "", parser.description or "", "",
+           *_arguments(parser), ""]
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    helps = {c.dest: c.help for c in commands._choices_actions}
+    for name, sub in commands.choices.items():
+        usage = " ".join(sub.format_usage().split()).removeprefix("usage: ")
+        out += [f"## sigmarl {name}", "", helps.get(name) or "", "", f"`{usage}`", "", *_arguments(sub), ""]
+    return "\n".join(out)
+
+
+def config() -> str:
+    """Every config group and key: type, default and its help line; top-level keys first."""
+    from sigmarl.config_help import key_help
+
+    header = ["| key | type | default | help |", "|---|---|---|---|"]
+    keys = key_help()
+    out = ["## Top-level keys", "", *header]
+    out += [_key_row(k) for k in keys if "." not in k.key and not k.group]
+    for group in (k for k in keys if k.group):
+        out += ["", f"## `{group.key}`", "", group.help, "", *header]
+        out += [_key_row(k) for k in keys if k.key.startswith(group.key + ".") and not k.group]
+    return "\n".join(out) + "\n"
+
+
+def _key_row(k) -> str:
+    return f"| `{k.key}` | `{_cell(k.type)}` | `{_cell(repr(k.default))}` | {_cell(k.help)} |"
+
+
+def run_folder() -> str:
+    """The files of a run folder, from their names and comments in `sigmarl.run`."""
+    import sigmarl.run
+
+    source = Path(sigmarl.run.__file__).read_text(encoding="utf-8")
+    rows = ["| file | what it holds |", "|---|---|"]
+    rows += [f"| `{file}` | {_cell(comment)} |"
+             for file, comment in re.findall(r'^[A-Z_]+_(?:FILE|META) = "([^"]+)"\s*#\s*(.*)$', source, re.M)]
+    return "\n".join(rows) + "\n"
+
+
+PARTS = {"cli": cli, "config": config, "run-folder": run_folder}
+
+
+def expand(markdown: str) -> str:
+    """The page with each marker line replaced by its generated part."""
+    return MARKER.sub(lambda m: PARTS[m.group(1)]().strip(), markdown)
+
+
+def on_page_markdown(markdown: str, page, config, files) -> str:  # the mkdocs hook
+    return expand(markdown)
+
+
+if __name__ == "__main__":
+    print(PARTS[sys.argv[1]]())
