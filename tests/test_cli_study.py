@@ -7,7 +7,8 @@ import pytest
 from sigmarl.cli import main
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
-from sigmarl.sweep import FAILED_FILE, plan_sweep, run_job
+from sigmarl.run import FAILED_FILE
+from sigmarl.sweep import plan_sweep, run_job
 from sigmarl.tracking import connect
 
 

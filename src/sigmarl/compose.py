@@ -6,8 +6,10 @@ The boundary between Hydra and the rest of sigmarl: what leaves here is typed (`
 
 from __future__ import annotations
 
+import copy
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
 
 from hydra import compose, initialize_config_dir
@@ -18,6 +20,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from sigmarl.config import Config, MapConfig, as_config, register_configs
 from sigmarl.errors import SigmarlError
+from sigmarl.identity import fingerprint
 from sigmarl.paths import conf_dir, config_files, user_conf_dirs
 from sigmarl.suggest import hydra_error_message, unknown_keys_message
 from sigmarl.validate import check
@@ -34,26 +37,53 @@ def search_path_override() -> list[str]:
 def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> Config:
     """The resolved config, checked (`sigmarl.validate.check`) and fingerprinted; a bad override
     or value raises SigmarlError with a message that names the key."""
-    from sigmarl.identity import fingerprint
+    return _finish(_compose(overrides, config_name), OmegaConf.structured(Config))
 
+
+def compose_seeds(overrides: Sequence[str], seeds: Sequence[int]) -> list[Config]:
+    """`compose_config([*overrides, f"seed={s}"])` for each seed, at the cost of one Hydra
+    composition: the seed is set on the composed tree before its interpolations
+    (`run_dir: ...seed${seed}`) are resolved, as Hydra's own `seed=` override sets it."""
+    tree, schema = _compose(overrides), OmegaConf.structured(Config)
+    configs = []
+    for seed in seeds:
+        one = copy.deepcopy(tree)  # resolving changes the tree in place
+        one.seed = seed
+        configs.append(_finish(one, schema))
+    return configs
+
+
+def _compose(overrides: Sequence[str], config_name: str = "config") -> DictConfig:
+    """Hydra's composition of the overrides, its interpolations not yet resolved."""
     register_configs()
     # After a Hydra app (the sweep) has run in this process its global state lingers.
     GlobalHydra.instance().clear()
-    try:
+    with _bad_override():
         with initialize_config_dir(config_dir=str(conf_dir()), version_base=None):
-            cfg = compose(config_name=config_name, overrides=[*search_path_override(), *overrides])
+            return compose(config_name=config_name, overrides=[*search_path_override(), *overrides])
+
+
+def _finish(cfg: DictConfig, schema: DictConfig) -> Config:
+    """A composed tree resolved, held against the schema, checked and fingerprinted."""
+    with _bad_override():
         OmegaConf.resolve(cfg)
-    except (HydraException, OmegaConfBaseException) as e:
-        raise SigmarlError(f"bad config override: {hydra_error_message(e)}") from e
-    except ValueError as e:  # e.g. an integer too long for Python to parse (over 4300 digits)
-        raise SigmarlError(f"bad config override: {str(e).splitlines()[0]}") from e
     # `+key=value` adds keys the schema does not know (Hydra's own error message even suggests
     # it): a misspelt flag would be silently ignored.
-    unknown = _unknown_keys(cfg, OmegaConf.structured(Config))
+    unknown = _unknown_keys(cfg, schema)
     if unknown:
         raise SigmarlError(unknown_keys_message(unknown))
     config = check(as_config(cfg))
     return replace(config, fingerprint=fingerprint(config))
+
+
+@contextmanager
+def _bad_override() -> Iterator[None]:
+    try:
+        yield
+    except (HydraException, OmegaConfBaseException) as e:
+        raise SigmarlError(f"bad config override: {hydra_error_message(e)}") from e
+    except ValueError as e:  # e.g. an integer too long for Python to parse (over 4300 digits)
+        raise SigmarlError(f"bad config override: {str(e).splitlines()[0]}") from e
 
 
 def hydra_config(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:

@@ -1,0 +1,142 @@
+"""One sweep job, as Hydra's launcher runs it: train (or resume, or skip) and evaluate one run."""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import traceback
+from dataclasses import replace
+from pathlib import Path
+
+import torch
+from hydra.core.singleton import Singleton
+from omegaconf import DictConfig
+
+from sigmarl.compose import compose_config
+from sigmarl.config import Config, as_config
+from sigmarl.errors import SigmarlError, handle_sigterm, interruption, raise_if_interrupted
+from sigmarl.evaluation.protocol import evaluate_and_log
+from sigmarl.identity import differences
+from sigmarl.progress import emit
+from sigmarl.resources import end_with_the_sweep, enter_sweep_folder, job_threads, use_threads
+from sigmarl.run import Run, write_atomic
+from sigmarl.sweep.plan import earlier_config
+from sigmarl.tracking import open_tracker, records
+from sigmarl.training.loop import train
+
+
+def run_job(cfg: DictConfig | Config) -> str:
+    """Train (or resume, or skip) and evaluate one run; returns 'done', 'failed' or 'interrupted'.
+
+    `cfg` is the job's config as Hydra's launcher hands it over (a DictConfig naming the plan
+    and the job's key in it), or an already composed `Config`.
+
+    Every step can be killed at any instant and the job run again: training resumes from
+    `checkpoint.pt` (or starts from scratch if it never got that far) and completes the
+    MLflow record of a training that was killed after its end; evaluation logs the saved
+    `evaluation_rows.csv` if it was killed after evaluating, and is skipped once MLflow
+    holds a finished evaluation run under the same protocol.
+    """
+    handle_sigterm()  # in a launcher's worker process, SIGTERM must end runs as KILLED too
+    enter_sweep_folder()
+    end_with_the_sweep()
+    try:
+        cfg = _job_config(cfg)
+    except SigmarlError as e:  # the plan is unreadable or the config tree changed under it
+        print(f"sigmarl sweep: job failed: {e}", file=sys.stderr)
+        return "failed"
+    run_dir = Path(cfg.run_dir)
+    try:
+        with Run(run_dir).lock():  # one writer per run folder, for the whole job
+            return _train_and_evaluate(cfg, run_dir)
+    except SigmarlError as e:
+        if "in use by another sigmarl process" not in str(e):
+            raise
+        print(f"sigmarl sweep: job {run_dir} skipped: {e}", file=sys.stderr)
+        return "busy"
+
+
+def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
+    run = Run(run_dir)
+    run.clear_failed()
+    try:
+        cfg = replace(cfg, resume=run.resume_file.exists(), threads=job_threads(cfg.threads))
+        use_threads(cfg.threads)  # training and this job's evaluation
+        if cfg.study.checkpoints_from:  # a study that evaluates trained runs, not trains them
+            return _evaluate_trained(cfg, run_dir)
+        tracker = open_tracker(cfg)  # one connection for the job's training and evaluation
+        result = train(cfg, tracker)
+        if not result.finished:
+            return "interrupted"
+        if result.run_id and (done := tracker.finished_evaluation(result.run_id, records.eval_key(cfg.eval))):
+            emit(f"{run_dir}: already evaluated")
+            run.mark_done(done)
+            return "done"
+        _, eval_run = evaluate_and_log(run.checkpoint(cfg.eval.checkpoint), cfg, result.run_id,
+                                       rows_file=run.rows_file, tracker=tracker)
+        run.mark_done(eval_run)
+        return "done"
+    except BaseException as e:
+        return _failed(e, run)
+
+
+def _failed(e: BaseException, run: Run) -> str:
+    """An interrupt goes on up (a re-run resumes); any other error is written to `failed.txt`
+    and the job returns, so that the sweep's other jobs go on."""
+    run_dir = run.dir
+    if interruption(e) is not None:  # Ctrl-C or SIGTERM: interrupted, not failed
+        emit(f"sigmarl sweep: job {run_dir} interrupted; run the sweep again to resume", logging.WARNING)
+        raise_if_interrupted(e)
+    if not isinstance(e, Exception):
+        raise e
+    message = str(e) if isinstance(e, SigmarlError) else traceback.format_exc()
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        run.mark_failed(message)
+    except OSError:  # an unwritable run folder is itself the error reported
+        pass
+    emit(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", logging.ERROR)
+    return "failed"
+
+
+def _evaluate_trained(cfg: Config, run_dir: Path) -> str:
+    """Evaluate the run of the same label, seed and training config under
+    `study.checkpoints_from` into this job's own run folder (its config.yaml, rows and marks),
+    leaving the trained run as it is."""
+    source = Run(Path(cfg.study.checkpoints_from) / cfg.model / f"seed{cfg.seed}")
+    run = Run(run_dir)
+    trained = earlier_config(source.dir)
+    if trained is None or not source.checkpoint(cfg.eval.checkpoint).is_file():
+        raise SigmarlError(f"{source.dir} holds no trained run to evaluate (study.checkpoints_from)")
+    if trained.fingerprint != cfg.fingerprint:
+        raise SigmarlError(f"{source.dir} was trained with another config ({differences(trained, cfg)})")
+    torch.set_num_threads(cfg.threads)
+    write_atomic(run.config_file, source.config_file.read_text())
+    _, eval_run = evaluate_and_log(source.checkpoint(cfg.eval.checkpoint), cfg, None, progress=False,
+                                   rows_file=run.rows_file)
+    run.mark_done(eval_run)
+    return "done"
+
+
+def _job_config(cfg: DictConfig | Config) -> Config:
+    """A job's config: composed from its plan entry (Hydra's composition only carries the
+    plan's path and the job's key), or as given."""
+    if isinstance(cfg, Config):
+        return cfg
+    plan, key = str(cfg.study.plan), str(cfg.study.job)
+    if not plan:
+        return as_config(cfg)
+    try:
+        entry = json.loads(Path(plan).read_text())[key]
+    except (OSError, ValueError, KeyError) as e:
+        raise SigmarlError(f"cannot read job {key!r} of the sweep plan {plan}: {e}") from e
+    state = Singleton.get_state()  # composing here must not disturb the running Hydra job
+    try:
+        job = compose_config(entry["overrides"])
+    finally:
+        Singleton.set_state(state)
+    if job.fingerprint != entry["fingerprint"]:
+        raise SigmarlError(f"job {key}: its config changed since the sweep was planned "
+                           "(config files edited?); run the sweep again")
+    return replace(job, overrides=list(entry["variant"]))

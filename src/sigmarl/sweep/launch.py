@@ -1,0 +1,109 @@
+"""Running a plan: its file in the sweep's folder, Hydra's multirun over it in this process,
+and the summary read back from the run folders."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import hydra
+
+from sigmarl.compose import search_path_override
+from sigmarl.config import register_configs
+from sigmarl.paths import CONFIG_PATH, conf_dir, user_conf_dirs
+from sigmarl.resources import sweep_folder_override, sweep_owner_override
+from sigmarl.run import Run, write_atomic
+from sigmarl.sweep.job import run_job
+from sigmarl.sweep.plan import Job, SweepPlan, plan_sweep
+from sigmarl.tracking import open_tracker
+
+PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
+
+
+def run_sweep(user_overrides: Sequence[str]) -> int:
+    """Plan, then run the multirun in this process (Hydra's entry point), then summarise."""
+    return launch(plan_sweep(user_overrides))
+
+
+def launch(plan: SweepPlan) -> int:
+    """Run a plan's jobs as Hydra's multirun in this process, then summarise them."""
+    # conf/hydra/launcher/ray.yaml takes the Ray plugin's config name on purpose (a ready config
+    # behind `hydra/launcher=ray`); Hydra warns that it validates it against the plugin's schema.
+    warnings.filterwarnings("ignore", message=r"(?s).*validated against ConfigStore schema")
+    if all(finished(job) for job in plan.jobs):  # answered from the run folders: no launcher, no store
+        print("every job of this sweep is already trained and evaluated")
+        return summarise(plan)
+    if plan.config is not None:  # the tracking store checked here, before any job starts
+        open_tracker(plan.config)
+    overrides = multirun_overrides(plan, write_plan(plan))
+    register_configs()
+    argv = sys.argv
+    sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override(), *sweep_owner_override()]
+    try:
+        main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
+        main()
+    finally:
+        sys.argv = argv
+    return summarise(plan)
+
+
+def write_plan(plan: SweepPlan) -> Path:
+    """The plan as a file in the sweep's folder, named by its content (two sweeps never share
+    one by accident), written whole or not at all."""
+    entries = {j.key: {"overrides": j.overrides, "variant": j.variant, "fingerprint": j.fingerprint}
+               for j in plan.jobs}
+    text = json.dumps(entries, indent=1, sort_keys=True) + "\n"
+    path = (PLANS / f"{hashlib.sha1(text.encode()).hexdigest()[:16]}.json").resolve()
+    write_atomic(path, text)
+    return path
+
+
+def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
+    """What Hydra's multirun gets: one job per plan entry, named by its key."""
+    users = [f"++hydra.job.env_set.{CONFIG_PATH}='{os.pathsep.join(map(str, user_conf_dirs()))}'"] \
+        if user_conf_dirs() else []
+    return [*search_path_override(), *plan.fixed, *plan.hydra, "study.job=" + ",".join(j.key for j in plan.jobs),
+            f"study.plan='{plan_file}'", "hydra.sweep.subdir=${study.job}", *users]
+
+
+def finished(job: Job) -> bool:
+    """Whether the job's run folder holds this very job, done: `evaluated.txt`, no `failed.txt`,
+    a config.yaml of the same fingerprint (checked when the plan was made) and rows measured
+    under the job's evaluation protocol."""
+    run = Run(job.run_dir)
+    if not run.done_file.is_file() or run.failed_file.exists():
+        return False
+    try:
+        evaluated = json.loads(run.rows_meta_file.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return run.config_file.is_file() and evaluated.get("eval_key") == job.eval_key
+
+
+def summarise(plan: SweepPlan) -> int:
+    """Print each job's state from its run folder; non-zero if any failed or is unfinished."""
+    bad = 0
+    width = max([len(j.label) for j in plan.jobs] + [6])
+    print("\nsweep summary:")
+    for job in plan.jobs:
+        run = Run(job.run_dir)
+        run_dir = run.dir
+        if (failure := run.failure()) is not None:
+            state = "FAILED: " + failure
+            bad += 1
+        elif run.done_file.exists():
+            state = "trained and evaluated"
+        else:
+            state = "unfinished (run the sweep again to resume)"
+            bad += 1
+        variant = " ".join(job.variant)
+        print(f"  {job.label:<{width}} {variant:<28} seed {job.seed:<3} {state}   [{run_dir}]")
+    if not bad:
+        keep = [o for o in plan.fixed if o.startswith(("study", "tracking", "runs_root"))]
+        print(f"next: sigmarl report {' '.join(keep)}".rstrip())
+    return 1 if bad else 0

@@ -1,0 +1,181 @@
+"""Planning a sweep: every job composed and checked in this process, before anything trains.
+
+A typo or a bad value ends here in one line; so do two different training configs under one
+label, two jobs sharing a run folder, and a run folder that holds another config's run. Each
+variant is composed once, its seeds taken from that one composition."""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import os
+import re
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import yaml
+
+from sigmarl.ablation import check_eval
+from sigmarl.compose import compose_config, compose_seeds
+from sigmarl.config import Config, StudyConfig, config_from_dict
+from sigmarl.errors import SigmarlError
+from sigmarl.identity import check_label, differences, fingerprint
+from sigmarl.run import Run
+from sigmarl.sweep.command import Command, override_key, read_command, slug
+from sigmarl.tracking.records import eval_key
+from sigmarl.validate import SEED_MAX
+
+
+@dataclass
+class Job:
+    key: str  # <label>/seed<k>: the plan's key, the multirun's sub-folder
+    label: str
+    seed: int
+    overrides: list[str]  # everything the job composes its config from
+    variant: list[str]  # the variant's own overrides (recorded in the run)
+    run_dir: str
+    fingerprint: str
+    eval_key: str = ""  # the evaluation protocol it is evaluated under (sigmarl.tracking.records)
+
+
+@dataclass
+class SweepPlan:
+    study: StudyConfig
+    fixed: list[str]  # the user's overrides that every job shares
+    hydra: list[str]  # Hydra's own settings (launcher, ...), for the multirun
+    jobs: list[Job] = field(default_factory=list)
+    config: Config | None = None  # the sweep's config without any variant (tracking, study)
+
+    @property
+    def labels(self) -> list[str]:
+        return list(dict.fromkeys(j.label for j in self.jobs))
+
+
+def plan_sweep(user: Sequence[str], cores: int | None = None,
+               seeds_by_label: dict[str, list[int]] | None = None) -> SweepPlan:
+    """Every job of `sigmarl sweep <user overrides>`, composed and checked; nothing is written.
+    `seeds_by_label` gives each variant its own seeds (`seeds=auto`'s rounds)."""
+    command = read_command(user)
+    base = compose_config(command.fixed)
+    variants = _variants(command, base)
+    seeds = _seeds(command, base.study)
+    plan = SweepPlan(base.study, command.fixed, command.hydra, config=base)
+    for name, own in _labelled(command, base.study, variants):
+        plan.jobs += _variant_jobs(name, [*command.fixed, *own, f"model={name}"], own,
+                                   (seeds_by_label or {}).get(name, seeds))
+    _check_apart(plan.jobs)
+    plan.hydra += _launcher(command.hydra, len(plan.jobs), cores)
+    # `threads` is set in each job from what its launcher granted it (sigmarl.resources).
+    return plan
+
+
+def job_overrides(user_overrides: Sequence[str]) -> tuple[list[str], list[list[str]]]:
+    """For `sweep --cfg`: Hydra's settings the jobs share, and each job's own overrides."""
+    plan = plan_sweep(user_overrides)
+    return plan.hydra, [j.overrides for j in plan.jobs]
+
+
+def _variants(command: Command, base: Config) -> dict[str, list[str]]:
+    """Label -> the variant's overrides: the presets named by obs=..., else the study's
+    variants (or the config as composed, for a study without any), as models=[...] picks."""
+    study = base.study
+    if command.obs is not None:  # presets named on the command line replace the study's variants
+        variants = {compose_config([*command.fixed, f"obs={p}"]).model: [f"obs={p}"] for p in command.obs}
+    else:
+        variants = {check_label(k): list(v) for k, v in study.variants.items()} or {base.model: []}
+    if command.models is None:
+        return variants
+    unknown = [m for m in command.models if m not in variants]
+    if unknown:
+        raise SigmarlError(f"unknown model(s) {unknown}; study {study.name!r} declares "
+                           f"{', '.join(variants) or 'none'}")
+    return {m: variants[m] for m in dict.fromkeys(command.models)}
+
+
+def _seeds(command: Command, study: StudyConfig) -> list[int]:
+    seeds = _seed_list(command.seeds if command.seeds is not None else study.seeds)
+    if not seeds:
+        raise SigmarlError(f"study {study.name!r} declares no seeds; give seeds=[...]")
+    return seeds
+
+
+def _seed_list(values: Sequence[object]) -> list[int]:
+    """The seeds as whole numbers in the range `seed` takes, or one line naming the bad one."""
+    out = []
+    for value in values:
+        text = str(value).strip()
+        if not re.fullmatch(r"\d{1,10}", text) or int(text) > SEED_MAX:
+            raise SigmarlError(f"seeds: {text!r} is not a seed (a whole number in 0..{SEED_MAX}); "
+                               "give e.g. seeds=[0,1,2]")
+        out.append(int(text))
+    return out
+
+
+def _labelled(command: Command, study: StudyConfig,
+              variants: dict[str, list[str]]) -> Iterator[tuple[str, list[str]]]:
+    """(label, own overrides) of each variant and each value of a swept key:
+    `<variant>_<key>-<value>`, hashed where it would be longer than a label may be."""
+    fixed_keys = {override_key(o) for o in command.fixed}
+    keys = [key for key, _ in command.sweeps]
+    for label, variant in variants.items():
+        clash = sorted(fixed_keys & {override_key(v) for v in variant})
+        if clash:
+            raise SigmarlError(f"{', '.join(clash)} is set by variant {label} of study {study.name!r}; "
+                               "change the study's variants, or leave it out of the command line")
+        for combo in itertools.product(*(values for _, values in command.sweeps)):
+            name = "_".join([label, *(slug(key, v) for key, v in zip(keys, combo, strict=True))])
+            name = check_label(name if len(name) <= 64 else
+                               f"{label}_{hashlib.sha1(name.encode()).hexdigest()[:8]}")
+            yield name, [*variant, *(f"{key}={v}" for key, v in zip(keys, combo, strict=True))]
+
+
+def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: list[int]) -> list[Job]:
+    """The variant's jobs, one per seed, from one composition; each checked against the run
+    its run folder already holds."""
+    jobs = []
+    for seed, cfg in zip(seeds, compose_seeds(overrides, seeds) if seeds else [], strict=True):
+        check_eval(cfg.eval)
+        earlier = earlier_config(Path(cfg.run_dir))
+        if earlier is not None and earlier.fingerprint != cfg.fingerprint:
+            raise SigmarlError(f"{cfg.run_dir} holds a run of another training config "
+                               f"({differences(earlier, cfg)}); choose another runs_root=... or label")
+        jobs.append(Job(f"{label}/seed{seed}", label, seed, [*overrides, f"seed={seed}"], variant, cfg.run_dir,
+                        cfg.fingerprint, eval_key(cfg.eval)))
+    return jobs
+
+
+def _check_apart(jobs: list[Job]) -> None:
+    """No two jobs share a run folder, and one label holds one training config."""
+    owners: dict[str, Job] = {}
+    first: dict[str, Job] = {}
+    for job in jobs:
+        if job.run_dir in owners:
+            raise SigmarlError(f"jobs {owners[job.run_dir].key} and {job.key} would share the run "
+                               f"folder {job.run_dir}")
+        owners[job.run_dir] = job
+        other = first.setdefault(job.label, job)
+        if other.fingerprint != job.fingerprint:
+            raise SigmarlError(f"two different training configs under the label {job.label} "
+                               f"({other.key} and {job.key}); give each its own label")
+
+
+def _launcher(hydra: list[str], n_jobs: int, cores: int | None) -> list[str]:
+    """joblib with a worker per job up to the cores, unless the user chose a launcher."""
+    if any(override_key(h) == "hydra/launcher" for h in hydra):
+        return []
+    if any(override_key(h) == "hydra.launcher.n_jobs" for h in hydra):
+        return ["hydra/launcher=joblib"]
+    return ["hydra/launcher=joblib", f"hydra.launcher.n_jobs={min(n_jobs, cores or os.cpu_count() or 1)}"]
+
+
+def earlier_config(run_dir: Path) -> Config | None:
+    """The training config of the run already in `run_dir`, with its fingerprint recomputed."""
+    path = Run(run_dir).config_file
+    if not path.is_file():
+        return None
+    try:
+        saved = config_from_dict(yaml.safe_load(path.read_text()) or {}, what=str(path))
+    except (OSError, yaml.YAMLError) as e:
+        raise SigmarlError(f"{path} is unreadable ({e}); move the run folder away") from e
+    return replace(saved, fingerprint=fingerprint(saved))
