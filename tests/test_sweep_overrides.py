@@ -154,3 +154,13 @@ def test_sweep_with_list_values_end_to_end(tmp_path, monkeypatch, capsys):
     state = torch.load(run / "final.pt", weights_only=False)
     assert list(state["config"]["network"]["hidden"]) == [16, 16]
     assert "M0     obs=full" in capsys.readouterr().out
+
+
+def test_one_composition_per_variant_gives_what_each_seed_composed_alone_gives(tmp_path):
+    from sigmarl.compose import compose_config, compose_seeds
+
+    given = ["tracking.enabled=false", f"runs_root={tmp_path}", "eval.seed='${seed}'", "model=M2"]
+    together = compose_seeds(given, [3, 7])
+    assert [c.run_dir for c in together] == [f"{tmp_path}/M2/seed3", f"{tmp_path}/M2/seed7"]
+    assert [c.eval.seed for c in together] == [3, 7]  # an interpolation of the seed follows it
+    assert together == [compose_config([*given, f"seed={s}"]) for s in (3, 7)]
