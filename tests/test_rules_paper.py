@@ -23,17 +23,17 @@ from sigmarl.compose import compose_config, conf_dir
 from sigmarl.config import Config, RulesConfig
 from sigmarl.env.paper_rules import (
     MEASUREMENT_SWITCHES,
-    PaperRules,
     densify,
     for_evaluation,
     rules_label,
+    switches_on,
 )
 from sigmarl.evaluation.protocol import rows_rules
 from sigmarl.maps.model import Lanelet, RoadMap
 from sigmarl.maps.routes import build_route
 
 STEER_FREE, STEER_SCALE = math.radians(10), math.radians(50)
-ALL = [f.name for f in dataclasses.fields(PaperRules)]
+ALL = [f.name for f in dataclasses.fields(RulesConfig)]
 
 
 def _beta(delta: float) -> float:
@@ -47,11 +47,10 @@ def _yaw_rate(v: float, delta: float) -> float:
 
 # ---- the config group ----------------------------------------------------------------------
 def test_every_switch_is_a_config_key_and_the_presets_turn_all_off_or_on(kit):
-    assert [f.name for f in dataclasses.fields(RulesConfig)] == ALL
     assert kit.cfg(()).rules == RulesConfig()  # rules=ours is the default: every switch off
     assert all(getattr(kit.cfg(("rules=paper",)).rules, k) for k in ALL)
     one = kit.cfg(("rules.timeout_terminal=true",)).rules
-    assert PaperRules.from_config(one).on() == ["timeout_terminal"]
+    assert switches_on(one) == ["timeout_terminal"]
     paper = yaml.safe_load((conf_dir() / "rules" / "paper.yaml").read_text())
     assert sorted(k for k in paper if k != "defaults") == sorted(ALL)
 
@@ -409,7 +408,7 @@ def test_the_rule_families_split_the_paper_rules_and_the_screen_declares_them():
     from sigmarl.sweep import plan_sweep
 
     families = ["dynamics", "observation", "collisions", "episodes"]
-    on = {f: PaperRules.from_config(compose_config([f"rules=paper_{f}"]).rules).on() for f in families}
+    on = {f: switches_on(compose_config([f"rules=paper_{f}"]).rules) for f in families}
     assert on["dynamics"] == ["drag_dynamics"] and "own_boundary_index" in on["observation"]
     assert sorted(s for f in families for s in on[f]) == sorted(ALL)  # each switch in exactly one
     plan = plan_sweep(["study=paper_switches", "seeds=[0]", "tracking.enabled=false"], cores=2)
@@ -418,7 +417,7 @@ def test_the_rule_families_split_the_paper_rules_and_the_screen_declares_them():
     for f in families:
         for model, preset in [("M0", "full"), ("M4", "no_distance_to_boundaries")]:
             cfg = compose_config(jobs[f"{model}-{f}"].overrides)
-            assert cfg.obs.preset == preset and PaperRules.from_config(cfg.rules).on() == on[f]
+            assert cfg.obs.preset == preset and switches_on(cfg.rules) == on[f]
             assert cfg.ppo.iterations == 250 and cfg.run_dir == f"results/paper-switches/{model}-{f}/seed0"
     # the runs under ours and under all of the paper's rules are study=paper_rules' own, reused
     rules = {j.label: j for j in plan_sweep(["study=paper_rules", "seeds=[0]", "tracking.enabled=false"], cores=2).jobs}

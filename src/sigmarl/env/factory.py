@@ -10,15 +10,13 @@ from torchrl.data import Unbounded
 from torchrl.envs import EnvBase
 from torchrl.envs.libs.vmas import VmasEnv
 
-from sigmarl.env.observation import ObsFlags
-from sigmarl.env.paper_rules import PaperRules
 from sigmarl.env.scenario import ScenarioSettings, TrafficScenario
 from sigmarl.env.spawn import MIN_GAP, capacity
 from sigmarl.errors import SigmarlError
 from sigmarl.maps import RoadMap, load_map
 
 if TYPE_CHECKING:
-    from sigmarl.config import Config, MapConfig
+    from sigmarl.config import Config, MapConfig, ObsConfig
 
 
 class TrafficEnv(VmasEnv):
@@ -102,7 +100,7 @@ class TrafficEnv(VmasEnv):
         return self._output(with_reward=False)
 
 
-def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: int, flags: ObsFlags) -> None:
+def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: int, flags: ObsConfig) -> None:
     """Reject impossible settings before any stepping."""
     if n_agents < 1:
         raise SigmarlError(f"env.n_agents must be at least 1, got {n_agents}")
@@ -139,8 +137,7 @@ def make_env(
     max_steps = int(max_steps if max_steps is not None else env_cfg.max_steps)
     seed = int(seed if seed is not None else cfg.seed)
     device = device or cfg.device
-    flags = ObsFlags.from_config(cfg.obs)
-    validate(n_agents, mode, float(cfg.obs.noise), num_envs, max_steps, flags)
+    validate(n_agents, mode, float(cfg.obs.noise), num_envs, max_steps, cfg.obs)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
     if n_agents > (room := capacity(road_map.routes)):  # fail at once, not after building it all
         raise SigmarlError(f"could not place {n_agents} agents on map {road_map.name}: its routes hold at "
@@ -152,15 +149,15 @@ def make_env(
         continuous_actions=True,
         max_steps=max_steps,
         seed=seed,
-        settings=_settings(cfg, road_map, flags, n_agents, mode, seed),
+        settings=_settings(cfg, road_map, n_agents, mode, seed),
     )
 
 
-def _settings(cfg: Config, road_map: RoadMap, flags: ObsFlags, n_agents: int, mode: str, seed: int) -> ScenarioSettings:
+def _settings(cfg: Config, road_map: RoadMap, n_agents: int, mode: str, seed: int) -> ScenarioSettings:
     env_cfg = cfg.env
     return ScenarioSettings(
         road_map=road_map,
-        flags=flags,
+        flags=cfg.obs,
         n_agents=n_agents,
         mode=mode,
         noise=float(cfg.obs.noise),
@@ -169,7 +166,7 @@ def _settings(cfg: Config, road_map: RoadMap, flags: ObsFlags, n_agents: int, mo
         spawn_end_fraction=float(env_cfg.spawn_end_fraction),
         spawn_margin_m=float(env_cfg.spawn_margin_m),
         seed=seed,  # VmasEnv keeps its own `seed` argument for itself
-        rules=PaperRules.from_config(cfg.rules),
+        rules=cfg.rules,
     )
 
 
@@ -189,12 +186,11 @@ def make_scenario(
     does. Built and reset as VMAS' constructor does, so the same seed gives the same
     spawns and noise as `make_env(...).reset()`."""
     seed = int(seed if seed is not None else cfg.seed)
-    flags = ObsFlags.from_config(cfg.obs)
-    validate(n_agents, mode, float(cfg.obs.noise), num_envs, 1, flags)
+    validate(n_agents, mode, float(cfg.obs.noise), num_envs, 1, cfg.obs)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
     scenario = TrafficScenario()
     scenario.env_make_world(num_envs, torch.device(device or cfg.device),
-                            settings=_settings(cfg, road_map, flags, n_agents, mode, seed))
+                            settings=_settings(cfg, road_map, n_agents, mode, seed))
     scenario.reset_world_at(None)  # VMAS resets (and observes) once when it builds an environment
     scenario.current_observation()
     return scenario

@@ -23,24 +23,6 @@ DIST_SCALE = NORMALISERS.distance
 HEADING_SCALE = NORMALISERS.heading
 
 
-@dataclass(frozen=True)
-class ObsFlags:
-    ego_view: bool = True
-    vertices: bool = True
-    distance_to_agents: bool = True
-    distance_to_boundaries: bool = True
-    distance_to_center_line: bool = True
-    n_nearest: int = 2
-    n_ref_points: int = 3
-
-    @classmethod
-    def from_config(cls, cfg: ObsConfig) -> ObsFlags:
-        from sigmarl.ablation import OBS_FLAGS  # the strategies' one list
-
-        return cls(**{flag: bool(getattr(cfg, flag)) for flag in OBS_FLAGS},
-                   n_nearest=int(cfg.n_nearest), n_ref_points=int(cfg.n_ref_points))
-
-
 @dataclass
 class ObsInputs:
     """Everything the observation reads, batched [E, A, ...] in world coordinates."""
@@ -75,7 +57,7 @@ def _frame(points: torch.Tensor, x: ObsInputs, ego: bool) -> torch.Tensor:
     return out.flatten(-2)
 
 
-def build_observation(x: ObsInputs, flags: ObsFlags) -> torch.Tensor:
+def build_observation(x: ObsInputs, flags: ObsConfig) -> torch.Tensor:
     """[E, A, D] observation for all agents at once."""
     e = flags.ego_view
     parts: list[torch.Tensor] = []
@@ -94,7 +76,7 @@ def build_observation(x: ObsInputs, flags: ObsFlags) -> torch.Tensor:
     return torch.cat(parts, dim=-1)
 
 
-def _others(x: ObsInputs, flags: ObsFlags) -> torch.Tensor:
+def _others(x: ObsInputs, flags: ObsConfig) -> torch.Tensor:
     """[E, A, K, per_other] block for the K nearest other agents."""
     e = flags.ego_view
     nb = x.neighbours  # [E, A, K]

@@ -12,7 +12,7 @@ switches that would change what is measured off.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -24,6 +24,7 @@ from sigmarl.env.geometry import wrap_angle
 from sigmarl.env.params import NORMALISERS
 
 if TYPE_CHECKING:
+    from sigmarl.config import RulesConfig
     from sigmarl.env.route_bank import RouteBank
     from sigmarl.maps.model import RoadMap
 
@@ -43,37 +44,15 @@ SIDE_VERTICES = (-1, 4)  # M4's boundary vertices: one before to three after the
 MEASUREMENT_SWITCHES = ("strict_crossings", "env_lane_flag", "stale_respawn_obs")
 
 
-@dataclass(frozen=True)
-class PaperRules:
-    """The environment's copy of `RulesConfig` (same keys; see it for what each one does)."""
-
-    drag_dynamics: bool = False
-    speed_normaliser_one: bool = False
-    unsigned_speed: bool = False
-    others_velocity_heading: bool = False
-    unwrapped_headings: bool = False
-    one_sided_noise: bool = False
-    raw_center_line: bool = False
-    own_boundary_index: bool = False
-    test_world_size: bool = False
-    strict_crossings: bool = False
-    env_lane_flag: bool = False
-    lagged_steering: bool = False
-    timeout_terminal: bool = False
-    stale_respawn_obs: bool = False
-
-    @classmethod
-    def from_config(cls, cfg: Any) -> PaperRules:
-        return cls(**{f.name: bool(getattr(cfg, f.name)) for f in fields(cls)})
-
-    def on(self) -> list[str]:
-        return [f.name for f in fields(self) if getattr(self, f.name)]
+def switches_on(rules: RulesConfig) -> list[str]:
+    """The rules' switches that are on, in the config's order."""
+    return [f.name for f in fields(rules) if getattr(rules, f.name)]
 
 
-def rules_label(cfg: Any) -> str:
+def rules_label(rules: RulesConfig) -> str:
     """`ours` (every switch off), `paper` (every switch on), or the switches on, joined by +."""
-    on = PaperRules.from_config(cfg).on()
-    return "ours" if not on else "paper" if len(on) == len(fields(PaperRules)) else "+".join(on)
+    on = switches_on(rules)
+    return "ours" if not on else "paper" if len(on) == len(fields(rules)) else "+".join(on)
 
 
 def for_evaluation(cfg: Any) -> Any:
@@ -110,7 +89,7 @@ def heading_velocity(vel: torch.Tensor, heading: torch.Tensor) -> torch.Tensor:
     return vel.norm(dim=-1, keepdim=True) * torch.stack([heading.cos(), heading.sin()], -1)
 
 
-def speed_scale(rules: PaperRules) -> float:
+def speed_scale(rules: RulesConfig) -> float:
     return COMMAND_LIMIT if rules.speed_normaliser_one else NORMALISERS.speed
 
 

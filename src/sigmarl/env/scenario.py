@@ -11,6 +11,7 @@ kinematic single-track model runs on our own state tensors.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
+from typing import TYPE_CHECKING
 
 import torch
 from vmas.simulator.core import Agent, Box, World
@@ -26,12 +27,15 @@ from sigmarl.env.collision import (
 )
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import rect_corners
-from sigmarl.env.observation import WORLD_SIZE, ObsFlags, ObsInputs, build_observation
+from sigmarl.env.observation import WORLD_SIZE, ObsInputs, build_observation
 from sigmarl.env.params import DT, VEHICLE
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
 from sigmarl.env.route_bank import CENTER, HALF_DIAGONAL, RouteBank
 from sigmarl.env.spawn import sample_spawns, spawn_index_range
 from sigmarl.maps.model import RoadMap
+
+if TYPE_CHECKING:
+    from sigmarl.config import ObsConfig, RulesConfig
 
 LENGTH, WIDTH = VEHICLE.length, VEHICLE.width
 MAX_SPEED, MAX_STEER = VEHICLE.max_speed, VEHICLE.max_steering
@@ -49,7 +53,7 @@ class ScenarioSettings:
     """Everything the scenario is built from (`make_env` fills it from the config)."""
 
     road_map: RoadMap
-    flags: ObsFlags
+    flags: ObsConfig  # the observation design
     n_agents: int
     mode: str  # train | test
     noise: float  # total width of the zero-mean uniform observation noise
@@ -58,7 +62,7 @@ class ScenarioSettings:
     spawn_end_fraction: float
     spawn_margin_m: float
     seed: int  # the spawn and noise generators' seed
-    rules: paper.PaperRules = paper.PaperRules()  # the paper's rules switched on (none: ours)
+    rules: RulesConfig  # the paper's rules switched on (none: ours)
 
 
 @dataclass
