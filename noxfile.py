@@ -1,4 +1,4 @@
-"""Sessions: tests, lint, bench, demo. Each installs the CPU build of torch first (see docs/getting-started.md)."""
+"""Sessions: tests, lint, bench. Each installs the CPU build of torch first (see docs/getting-started.md)."""
 
 from pathlib import Path
 

@@ -60,8 +60,13 @@ def test_deterministic_given_seed(cfg):
     assert a.equals(b)
 
 
+OBS_DIMS = {"full": 32}  # M0's observation size, counted by hand
+
+
 def cfg_obs_dim(cfg) -> int:
-    return 32 if cfg.obs.preset == "full" else 0
+    if cfg.obs.preset not in OBS_DIMS:
+        pytest.fail(f"no hand-counted observation size for obs={cfg.obs.preset}")
+    return OBS_DIMS[cfg.obs.preset]
 
 
 def test_all_models_face_the_same_initial_states(cfg):

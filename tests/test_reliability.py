@@ -125,6 +125,7 @@ def _stamp_older_schema(db: Path) -> None:
     con.close()
 
 
+@pytest.mark.slow  # MLflow migrates a new store from scratch: 12 s
 def test_a_half_migrated_empty_store_is_created_again(tmp_path: Path) -> None:
     # each command is a new process (MLflow caches an opened store per process)
     uri = f"sqlite:///{tmp_path}/mlflow.db"

@@ -404,6 +404,7 @@ def test_stale_observation_after_a_test_mode_respawn(env_factory, straight_road)
         assert float(d.sc.pos[0, 0, 1]) == pytest.approx(0.0, abs=1e-6)  # respawned on the center line
 
 
+@pytest.mark.slow  # plans two studies of 12 and 8 jobs: 5 s
 def test_the_rule_families_split_the_paper_rules_and_the_screen_declares_them():
     from sigmarl.sweep import plan_sweep
 

@@ -35,12 +35,6 @@ PRESET_TO_MODEL = {preset: model for model, preset in MODELS.items()}
 # a training iteration's timed phases (metrics.csv columns and MLflow metrics); their sum is its compute time
 TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")
 
-# Keys of one evaluation row: one (model, seed, scenario, simulation), followed by the metrics
-# (`sigmarl.metrics`); `model` is the run's label, `obs` lists the strategies that were on
-# (e.g. "V,DA,DB,DC" for M1).
-ROW_KEYS = ["model", "obs", "seed", "scenario", "simulation"]
-
-
 def _on(obs: ObsConfig | Mapping[str, Any], flag: str) -> bool:
     return bool(obs[flag] if isinstance(obs, Mapping) else getattr(obs, flag))
 

@@ -12,6 +12,7 @@ from pathlib import Path
 from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
 from sigmarl.paths import add_user_conf_dir
 from sigmarl.resources import use_threads
+from sigmarl.scenarios import scenario_names
 
 
 def _map_names() -> list[str]:
@@ -267,8 +268,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.set_defaults(func=cmd_train)
     ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios")
     ev.add_argument("target", help="checkpoint file, training run folder, or MLflow training run id")
-    ev.add_argument("--scenario", action="append", help="CPM, Intersection, On-Ramp, Roundabout (the paper's; the default is all four), "
-                    "Proc-Intersection, Proc-On-Ramp or Proc-Roundabout (procedural maps); repeatable")
+    ev.add_argument("--scenario", action="append", help=f"one of {', '.join(scenario_names())} (default: the "
+                    "study's, the paper's four); repeatable")
     ev.add_argument("--out", help="the CSV for the per-simulation rows (default: evaluation_rows.csv beside the checkpoint)")
     ev.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. eval.n_sims=8 eval.steps=600")
     ev.set_defaults(func=cmd_evaluate)

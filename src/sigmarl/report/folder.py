@@ -5,7 +5,7 @@ Layout, as a sweep writes it (`runs_root=...`) and as results/paper-budget/ is c
     <root>/<model label>/seed<k>/
         config.yaml          the resolved training config
         metrics.csv          per-iteration training metrics: `iteration` + metric columns
-        evaluation_rows.csv  per-simulation rows (sigmarl.ablation.ROW_KEYS + METRIC_COLUMNS)
+        evaluation_rows.csv  per-simulation rows (model, obs, seed, rules, scenario, simulation + the metrics)
         best.pt, final.pt    checkpoints (read only for animations)
 
 A run folder without evaluation rows (training unfinished) is skipped and named in the
