@@ -187,16 +187,29 @@ def test_evaluation_key_names_the_maps(monkeypatch, tmp_path):
     """Rows evaluated under Table I's names on other maps (the procedural ones, before the
     paper's maps existed, or a user's file of the same name) are never taken for the paper's:
     the evaluation key holds the maps."""
-    from sigmarl.tracking import records
+    from sigmarl.eval_key import eval_key
 
     eval_cfg = compose_config([]).eval
-    key = records.eval_key(eval_cfg)
+    key = eval_key(eval_cfg)
     (tmp_path / "scenario").mkdir()
     shadow = tmp_path / "scenario" / "Intersection.yaml"
     shadow.write_text("map: intersection\nn_agents: 6\n")
     monkeypatch.setenv("SIGMARL_CONFIG_PATH", str(tmp_path))
     assert scenario("Intersection").map == "intersection"
-    assert records.eval_key(eval_cfg) != key
+    assert eval_key(eval_cfg) != key
     shadow.write_text("map: paper_intersection\nn_agents: 6\n")
     monkeypatch.setenv("SIGMARL_CONFIG_PATH", str(tmp_path / "scenario"))  # a folder without scenario/
-    assert records.eval_key(eval_cfg) == key
+    assert eval_key(eval_cfg) == key
+
+
+def test_the_evaluation_key_keeps_the_stored_rows_and_follows_the_metric_columns(monkeypatch):
+    """The committed runs' rows keep their key (written before the metrics were hashed); a
+    metric column added since changes the key with no rules revision bump."""
+    from sigmarl import eval_key as key_module
+
+    run = Path(__file__).resolve().parents[1] / "results/paper-budget/M0/seed0"
+    stored = json.loads((run / "evaluation.json").read_text())["eval_key"]
+    eval_cfg = compose_config([]).eval
+    assert key_module.eval_key(eval_cfg) == stored == "e91834283d7e"
+    monkeypatch.setattr(key_module, "METRIC_COLUMNS", [*key_module.REVISION_METRICS, "TTC"])
+    assert key_module.eval_key(eval_cfg) != stored

@@ -13,7 +13,7 @@ import pytest
 from mlflow import MlflowClient
 
 from sigmarl.cli import main
-from sigmarl.env.params import RULES_REVISION
+from sigmarl.eval_key import RULES_REVISION
 from sigmarl.metrics import METRIC_COLUMNS
 from sigmarl.report.folder import read_results
 from sigmarl.scenarios import PAPER_SCENARIOS
@@ -89,7 +89,7 @@ def test_unevaluated_runs_are_named_and_left_out(tmp_path, capsys):
 
 def test_rows_measured_under_older_rules_are_left_out(tmp_path, capsys):
     # evaluation.json says which environment rules measured the rows; rows from before a fix
-    # that changed what is measured (env.params.RULES_REVISION) must not mix into the table.
+    # that changed what is measured (eval_key.RULES_REVISION) must not mix into the table.
     source = tmp_path / "results"
     shutil.copytree(FIXTURE, source)
     (source / "M4" / "seed1" / "evaluation.json").write_text(json.dumps({"eval_key": "0123456789ab"}))

@@ -71,9 +71,3 @@ class RewardWeights:
 
 
 REWARD = RewardWeights()
-
-# Revision of what the environment measures. Bump it when a fix changes collision flags or
-# metrics: evaluation identities (`tracking.records.eval_key`) include it, so rows measured
-# under older rules are redone rather than reused. 2: lane contacts "beyond the boundary"
-# decided by crossing parity (the nearest-segment side test gave false contacts on CPM).
-RULES_REVISION = 2

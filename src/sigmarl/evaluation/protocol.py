@@ -20,14 +20,14 @@ from sigmarl.ablation import (
 )
 from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.env.paper_rules import rules_label
-from sigmarl.env.params import RULES_REVISION
+from sigmarl.eval_key import RULES_REVISION, eval_key
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noqa: F401 (their old home)
 from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
 from sigmarl.run import ROWS_FILE, ROWS_META, Run, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
-from sigmarl.tracking import Tracker, open_tracker, records
+from sigmarl.tracking import Tracker, open_tracker
 
 
 def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] | None = None,
@@ -70,7 +70,7 @@ def rows_rules(rows: pd.DataFrame) -> pd.Series:
 def rows_file_for(checkpoint: Path, cfg: Config) -> Path:
     """Where `sigmarl evaluate` keeps the rows: evaluation_rows.csv beside the checkpoint,
     unless that holds another protocol's rows (then evaluation_rows-<protocol key>.csv)."""
-    key = records.eval_key(cfg.eval)
+    key = eval_key(cfg.eval)
     default = Run(checkpoint.parent).rows_file
     meta = _read_meta(default)
     return default if meta is None or meta.get("eval_key") == key else \
@@ -89,7 +89,7 @@ def _read_meta(rows_file: Path) -> dict | None:
 
 
 def _identity(path: Path, cfg: Config) -> dict[str, str]:
-    return {"eval_key": records.eval_key(cfg.eval),
+    return {"eval_key": eval_key(cfg.eval),
             "checkpoint_sha256": _sha256(path)}
 
 
@@ -152,7 +152,7 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
         "seed": str(train_cfg.seed),
         "train_run_id": train_run_id or state.get("mlflow_run_id") or "",
         "checkpoint": str(path),
-        "eval_key": records.eval_key(cfg.eval),
+        "eval_key": eval_key(cfg.eval),
     }
     params = {f"eval.{k}": str(v) for k, v in as_dict(cfg.eval).items()}
     params["checkpoint_iteration"] = str(state.get("iteration"))

@@ -23,8 +23,9 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.ablation import MODELS, TIMINGS
-from sigmarl.env.params import RULES_REVISION, VEHICLE
+from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
+from sigmarl.eval_key import RULES_REVISION
 from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
 from sigmarl.run import REWARD, ROWS_FILE, Run
 from sigmarl.scenarios import scenario_names
@@ -163,7 +164,7 @@ def _rules_of(run: RunFolder) -> int | None:
 
 def read_results(root: Path) -> FolderResults:
     """All evaluation rows and training curves of a results folder. Rows measured under older
-    environment rules (`env.params.RULES_REVISION`) are left out, with a note."""
+    environment rules (`eval_key.RULES_REVISION`) are left out, with a note."""
     runs = run_folders(root)
     frames, curves, notes = [], [], []
     seen: dict[tuple[str, int], Path] = {}

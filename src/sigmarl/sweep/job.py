@@ -16,13 +16,14 @@ from omegaconf import DictConfig
 from sigmarl.compose import compose_config
 from sigmarl.config import Config, as_config
 from sigmarl.errors import SigmarlError, handle_sigterm, interruption, raise_if_interrupted
+from sigmarl.eval_key import eval_key
 from sigmarl.evaluation.protocol import evaluate_and_log
 from sigmarl.identity import differences
 from sigmarl.progress import emit
 from sigmarl.resources import end_with_the_sweep, enter_sweep_folder, job_threads, use_threads
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep.plan import earlier_config
-from sigmarl.tracking import open_tracker, records
+from sigmarl.tracking import open_tracker
 from sigmarl.training.loop import train
 
 
@@ -69,7 +70,7 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
         result = train(cfg, tracker)
         if not result.finished:
             return "interrupted"
-        if result.run_id and (done := tracker.finished_evaluation(result.run_id, records.eval_key(cfg.eval))):
+        if result.run_id and (done := tracker.finished_evaluation(result.run_id, eval_key(cfg.eval))):
             emit(f"{run_dir}: already evaluated")
             run.mark_done(done)
             return "done"

@@ -20,10 +20,10 @@ from sigmarl.ablation import check_eval
 from sigmarl.compose import compose_config, compose_seeds
 from sigmarl.config import Config, StudyConfig, config_from_dict
 from sigmarl.errors import SigmarlError
+from sigmarl.eval_key import eval_key
 from sigmarl.identity import check_label, differences, fingerprint
 from sigmarl.run import Run
 from sigmarl.sweep.command import Command, override_key, read_command, slug
-from sigmarl.tracking.records import eval_key
 from sigmarl.validate import SEED_MAX
 
 

@@ -9,8 +9,6 @@ report run a kill left RUNNING is ended KILLED by the next report.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 import socket
 import tempfile
@@ -22,12 +20,9 @@ from typing import TYPE_CHECKING
 
 from sigmarl import crash
 from sigmarl.ablation import TIMINGS
-from sigmarl.config import EvalConfig, as_dict
-from sigmarl.env.params import RULES_REVISION
 from sigmarl.errors import SigmarlError, end_status
 from sigmarl.metrics import METRIC_COLUMNS, METRICS
 from sigmarl.run import REWARD, ROWS_FILE
-from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking.store import experiment_id
 
 if TYPE_CHECKING:  # pandas is imported where rows are read: a sweep's quick checks need only eval_key
@@ -41,18 +36,6 @@ OWNER_HOST, OWNER_PID = "sigmarl.host", "sigmarl.pid"
 _SUFFIX = {"percent": "pct", "cm": "cm", "m/s": "mps"}
 METRIC_NAMES = {m.name: f"{m.name}_{_SUFFIX.get(m.unit, m.unit)}" for m in METRICS}
 METRIC_SCALE = {m.name: m.scale for m in METRICS if m.scale != 1.0}
-
-
-def eval_key(eval_cfg: EvalConfig) -> str:
-    """A short hash of the evaluation protocol: runs with equal keys are interchangeable."""
-    protocol = as_dict(eval_cfg)
-    # A scenario's name does not say which map it ran on (Table I's names moved from the
-    # procedural maps to the paper's own): the key holds each scenario's map and agents.
-    known = scenario_names()
-    protocol["maps"] = {s: [scenario(s).map, scenario(s).n_agents] for s in protocol["scenarios"] if s in known}
-    protocol["rules"] = RULES_REVISION  # rows measured under older environment rules differ
-    blob = json.dumps(protocol, sort_keys=True)
-    return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
 
 def _evaluations(client, exp_id: str, train_run_id: str, key: str, status: str):
