@@ -7,6 +7,7 @@ x 1200 steps x 15 agents run in constant memory.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import pandas as pd
 import torch
@@ -16,7 +17,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
 
 from sigmarl.compose import scenario_map_config
-from sigmarl.config import Config
+from sigmarl.config import Config, EvalConfig
 from sigmarl.env.factory import make_scenario, step_scenario
 from sigmarl.env.paper_rules import for_evaluation
 from sigmarl.errors import SigmarlError
@@ -64,9 +65,9 @@ def evaluate_policy(
     policy,
     cfg: Config,
     scenario: str,
-    n_sims: int = 32,
-    steps: int = 1200,
-    seed: int = 2024,
+    n_sims: int = EvalConfig.n_sims,
+    steps: int = EvalConfig.steps,
+    seed: int = EvalConfig.seed,
     n_agents: int | None = None,
     device: str | None = None,
     progress: bool = True,
@@ -83,50 +84,66 @@ def evaluate_policy(
     per-step TensorDicts of torchrl and VMAS' per-agent calls would only add time.
     """
     cfg = for_evaluation(cfg)
-    map_cfg = scenario_map_config(scenario)
     n_agents = n_agents or scenario_of(scenario).n_agents
-    sc = make_scenario(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", map_cfg=map_cfg,
+    sc = make_scenario(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", map_cfg=scenario_map_config(scenario),
                        seed=seed, device=device)
     sc.compute_reward = False
     act = as_tensor_policy(policy)
     sc.reset_world_at(None)  # the rollout's own reset, as env.reset() does
     obs = sc.current_observation()
-    aa_steps = torch.zeros(n_sims, device=obs.device)
-    al_steps = torch.zeros_like(aa_steps)
-    aa_agent, al_agent = torch.zeros_like(aa_steps), torch.zeros_like(aa_steps)
-    dist_sum, speed_sum = torch.zeros_like(aa_steps), torch.zeros_like(aa_steps)
+    sums = _Sums.zeros(n_sims, obs.device)
     bar = Progress(steps, f"{cfg.model} seed {cfg.seed}", f"evaluate {scenario}", enabled=progress)
     for _ in range(steps):
         bar.update(1)
-        try:
-            action = act(obs)
-        except RuntimeError as e:  # typically a shape mismatch in the first layer
-            raise SigmarlError(
-                f"the policy cannot act on {scenario}'s observations (size {obs.shape[-1]}, "
-                f"observation preset {cfg.obs.preset!r}): {e}"
-            ) from e
-        if tuple(action.shape) != (n_sims, n_agents, 2):
-            raise SigmarlError(f"policy gave actions of shape {tuple(action.shape)}, expected [{n_sims}, {n_agents}, 2]")
-        obs = step_scenario(sc, action)
-        # what the step's infos report: the state it ended in, before anyone respawned
-        aa, al = sc.agent_collision, sc.lane_collision  # [E, A]
-        aa_steps += aa.any(-1)
-        al_steps += al.any(-1)
-        aa_agent += aa.sum(-1)
-        al_agent += al.sum(-1)
-        dist_sum += sc.step_d_center.sum(-1)
-        speed_sum += sc.step_speed.sum(-1)
+        obs = step_scenario(sc, _action(act, obs, (n_sims, n_agents), scenario, cfg))
+        sums.add(sc)
     bar.close()
-    agent_steps = steps * n_agents
-    rows = pd.DataFrame({
-        "scenario": scenario,
-        "simulation": range(n_sims),
-        "CR_AA": (aa_steps / steps).cpu().numpy(),
-        "CR_AL": (al_steps / steps).cpu().numpy(),
-        "CD": (100 * dist_sum / agent_steps).cpu().numpy(),
-        "AS": (speed_sum / agent_steps).cpu().numpy(),
-        "AA_per_agent_step": (aa_agent / agent_steps).cpu().numpy(),
-        "AL_per_agent_step": (al_agent / agent_steps).cpu().numpy(),
-    })
-    rows.insert(4, "CR_total", rows["CR_AA"] + rows["CR_AL"])
-    return rows
+    return sums.rows(scenario, steps, n_agents)
+
+
+def _action(act: Policy, obs: torch.Tensor, shape: tuple[int, int], scenario: str, cfg: Config) -> torch.Tensor:
+    """The policy's actions [E, A, 2], or one line saying why it cannot drive this scenario."""
+    try:
+        action = act(obs)
+    except RuntimeError as e:  # typically a shape mismatch in the first layer
+        raise SigmarlError(
+            f"the policy cannot act on {scenario}'s observations (size {obs.shape[-1]}, "
+            f"observation preset {cfg.obs.preset!r}): {e}"
+        ) from e
+    if tuple(action.shape) != (*shape, 2):
+        raise SigmarlError(f"policy gave actions of shape {tuple(action.shape)}, expected [{shape[0]}, {shape[1]}, 2]")
+    return action
+
+
+@dataclass
+class _Sums:
+    """Per-simulation sums over the steps, [E] each: all the metrics need."""
+
+    aa_steps: torch.Tensor  # steps with an agent-agent collision
+    al_steps: torch.Tensor  # steps with an agent-lane collision
+    distance: torch.Tensor  # center-line deviations, summed over agents and steps
+    speed: torch.Tensor
+
+    @classmethod
+    def zeros(cls, n_sims: int, device: torch.device) -> _Sums:
+        return cls(*(torch.zeros(n_sims, device=device) for _ in range(4)))
+
+    def add(self, sc) -> None:
+        """One step, as its infos report it: the state it ended in, before anyone respawned."""
+        self.aa_steps += sc.agent_collision.any(-1)
+        self.al_steps += sc.lane_collision.any(-1)
+        self.distance += sc.step_d_center.sum(-1)
+        self.speed += sc.step_speed.sum(-1)
+
+    def rows(self, scenario: str, steps: int, n_agents: int) -> pd.DataFrame:
+        agent_steps = steps * n_agents
+        rows = pd.DataFrame({
+            "scenario": scenario,
+            "simulation": range(len(self.speed)),
+            "CR_AA": (self.aa_steps / steps).cpu().numpy(),
+            "CR_AL": (self.al_steps / steps).cpu().numpy(),
+            "CD": (100 * self.distance / agent_steps).cpu().numpy(),
+            "AS": (self.speed / agent_steps).cpu().numpy(),
+        })
+        rows.insert(4, "CR_total", rows["CR_AA"] + rows["CR_AL"])
+        return rows
