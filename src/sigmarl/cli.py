@@ -83,13 +83,13 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     path = resolve_checkpoint(args.target, cfg)  # a wrong path is answered before torch is imported
     use_threads(cfg.threads)
     from sigmarl.evaluation.protocol import evaluate_and_log, rows_file_for
+    from sigmarl.metrics import scaled, units_text
 
     rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
     rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
-    means = rows.groupby("scenario", sort=False)[["CR_AA", "CR_AL", "CR_total", "CD", "AS"]].mean()
-    means[["CR_AA", "CR_AL", "CR_total"]] *= 100
+    means = scaled(rows).groupby(rows["scenario"], sort=False).mean()
     print(f"{rows['model'].iloc[0]} ({path}), {cfg.eval.n_sims} simulations x {cfg.eval.steps} steps, "
-          f"seed {cfg.eval.seed}: collision rates in %, CD in cm, AS in m/s")
+          f"seed {cfg.eval.seed}: {units_text()}")
     print(means.round(3).to_string())
     print(f"wrote {rows_file}")
     if run_id:

@@ -6,6 +6,10 @@ metric reads it from here. Adding a metric to Table I is a record here plus its 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pandas is imported where rows are read
+    import pandas as pd
 
 
 @dataclass(frozen=True)
@@ -22,6 +26,11 @@ class Metric:
     margin: float = 0.1
     zero_mean_note: str = ""  # why the composite score is undefined when its mean is 0
     meaning: str = ""
+
+    @property
+    def direction(self) -> int:
+        """+1 where higher is better, -1 where lower is."""
+        return -1 if self.lower_is_better else 1
 
 
 METRICS: tuple[Metric, ...] = (
@@ -43,9 +52,39 @@ BY_NAME = {m.name: m for m in METRICS}
 METRIC_COLUMNS = [m.name for m in METRICS]  # the evaluation rows' metric columns, in table order
 COLLISION_COLUMNS = tuple(m.name for m in METRICS if m.collision)
 COMPOSITE = {m.name: float(m.composite) for m in METRICS if m.composite}
-# the composite score's own row in the table: unitless, higher is better
+# the table's unit of each row; the composite score's own row: unitless, higher is better
 UNITS = {**{m.name: m.unit for m in METRICS}, "CS": "1"}
+# the evaluation rows' own units (what `scale` turns into the table's)
+ROW_UNITS = {m.name: "fraction of steps" if m.unit == "percent" else m.unit for m in METRICS}
 LOWER_IS_BETTER = frozenset(m.name for m in METRICS if m.lower_is_better)
+
+
+def shown_unit(name: str) -> str:
+    """A table row's unit as printed: "%" for percent, nothing for the unitless score."""
+    unit = UNITS.get(name, "")
+    return {"percent": "%", "1": ""}.get(unit, unit)
+
+
+def label(name: str) -> str:
+    """A row or column name with its unit as printed: "CR_AA (%)", "CD (cm)", "CS"."""
+    unit = shown_unit(name)
+    return f"{name} ({unit})" if unit else name
+
+
+def units_text(of_steps: bool = False) -> str:
+    """The table's units in words: "collision rates in %, CD in cm, AS in m/s"."""
+    rates = dict.fromkeys(shown_unit(m.name) + (" of steps" if of_steps else "") for m in METRICS if m.collision)
+    return ", ".join([f"collision rates in {' or '.join(rates)}",
+                      *(f"{m.name} in {shown_unit(m.name)}" for m in METRICS if not m.collision)])
+
+
+def scaled(rows: pd.DataFrame) -> pd.DataFrame:
+    """The metric columns of evaluation rows in the table's units (collision rates in percent)."""
+    out = rows[METRIC_COLUMNS].astype(float)
+    for m in METRICS:
+        if m.scale != 1.0:
+            out[m.name] *= m.scale
+    return out
 
 
 def metric(name: str) -> Metric:

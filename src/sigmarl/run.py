@@ -36,7 +36,7 @@ DONE_FILE = "evaluated.txt"  # the sweep's mark: trained and evaluated (the eval
 FAILED_FILE = "failed.txt"  # the sweep's mark: the job failed (the error)
 
 # The metric whose history tells which iterations a training run holds (metrics.csv, MLflow).
-REWARD = "episode_reward_mean"
+REWARD_COLUMN = "episode_reward_mean"
 
 
 def write_atomic(path: Path, data: str | bytes | Callable[[BinaryIO], None]) -> None:

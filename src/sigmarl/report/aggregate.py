@@ -16,7 +16,7 @@ import pandas as pd
 
 from sigmarl.ablation import MODELS
 from sigmarl.errors import SigmarlError
-from sigmarl.metrics import BY_NAME, COLLISION_COLUMNS, METRIC_COLUMNS, UNITS
+from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS, UNITS, scaled
 from sigmarl.report import bootstrap as bs
 from sigmarl.report.stats import mean_ci
 
@@ -137,15 +137,6 @@ class Cell:
 
     def seed_means(self) -> np.ndarray:
         return bs.seed_means(self.groups)
-
-
-def scaled(rows: pd.DataFrame) -> pd.DataFrame:
-    """The metric columns in report units (collision rates in percent)."""
-    out = rows[METRIC_COLUMNS].astype(float)
-    for name in METRIC_COLUMNS:
-        if BY_NAME[name].scale != 1.0:
-            out[name] *= BY_NAME[name].scale
-    return out
 
 
 def seed_groups(rows: pd.DataFrame) -> tuple[list, list[np.ndarray]]:

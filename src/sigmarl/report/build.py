@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl.ablation import MODELS
+from sigmarl.metrics import units_text
 from sigmarl.report.aggregate import (
     cells,
     model_order,
@@ -82,7 +83,7 @@ def _notes(
         (f"Mean over {seeds} seeds of each seed's mean over its simulations ({sims} simulations per cell)"
          if n_seeds.max() > 1 else f"Mean over {sims} simulations per cell")
         + (" [95% bootstrap interval over seeds and simulations]" if ci else "")
-        + "; collision rates in % of steps, CD in cm, AS in m/s; best per row in bold."
+        + f"; {units_text(of_steps=True)}; best per row in bold."
     ]
     if trim:
         notes.append("Collision rates without each evaluation's best and worst simulation.")

@@ -8,11 +8,9 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-DISTRIBUTION_METRICS = {
-    "CR_total": ("CR_total (%)", 100.0),
-    "CD": ("CD (cm)", 1.0),
-    "AS": ("AS (m/s)", 1.0),
-}
+from sigmarl.metrics import BY_NAME, label
+
+DISTRIBUTION_METRICS = {name: (label(name), BY_NAME[name].scale) for name in ("CR_total", "CD", "AS")}
 
 
 def plot_distributions(
@@ -31,7 +29,7 @@ def plot_distributions(
     positions = np.arange(1, len(models) + 1)
     for i, scenario in enumerate(scenarios):
         sc = rows[rows["scenario"] == scenario]
-        for j, (metric, (label, scale)) in enumerate(DISTRIBUTION_METRICS.items()):
+        for j, (metric, (title, scale)) in enumerate(DISTRIBUTION_METRICS.items()):
             ax = axes[i, j]
             data = [(sc.loc[sc["model"] == m, metric].dropna() * scale).to_numpy() for m in models]
             filled = [k for k, d in enumerate(data) if len(d)]
@@ -47,7 +45,7 @@ def plot_distributions(
                 ax.plot(positions[k] + jitter, data[k], ".", ms=2, alpha=0.5, color="tab:blue")
             ax.set_xticks(positions, models)
             ax.set_xlim(0.4, len(models) + 0.6)
-            ax.set_title(f"{scenario}: {label}", fontsize=9)
+            ax.set_title(f"{scenario}: {title}", fontsize=9)
             ax.grid(axis="y", alpha=0.3)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
@@ -137,7 +135,7 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
         ax.set_xlim(0, taus[-1])
         ax.set_ylim(0, 1.02)
         ax.set_title(panel, fontsize=9)
-        ax.set_xlabel("τ: CR_total (%)")
+        ax.set_xlabel(f"τ: {label('CR_total')}")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("fraction with CR_total > τ")
     axes[-1].legend(fontsize=7)
@@ -202,8 +200,7 @@ def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str],
                         fontsize=6.5, color="white" if dark else "black")
     ax.set_xticks(range(len(scenarios)), scenarios, rotation=40, ha="right", fontsize=8)
     ax.set_yticks(range(len(models)), models, fontsize=9)
-    unit = summary.loc[summary["metric"] == metric, "unit"].iloc[0] if (summary["metric"] == metric).any() else ""
-    fig.colorbar(image, ax=ax, label=f"{metric} ({'%' if unit == 'percent' else unit}), log scale")
+    fig.colorbar(image, ax=ax, label=f"{label(metric)}, log scale")
     ax.set_title(f"{metric}: mean over seeds [95% interval over seeds and simulations]", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=130)

@@ -27,7 +27,7 @@ from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
 from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
-from sigmarl.run import REWARD, ROWS_FILE, Run
+from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
 from sigmarl.scenarios import scenario_names
 
 _SEED_DIR = re.compile(r"seed(-?\d+)")
@@ -140,13 +140,13 @@ def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | No
     if not path.is_file():
         return None, None
     metrics = _read_csv(path)
-    missing = [c for c in ("iteration", REWARD) if c not in metrics.columns]
+    missing = [c for c in ("iteration", REWARD_COLUMN) if c not in metrics.columns]
     if missing:
         return None, f"{path} lacks the column(s) {', '.join(missing)}: no training curve"
     # a resumed run may have logged an iteration twice: the last record counts
     metrics = metrics.drop_duplicates("iteration", keep="last").sort_values("iteration", kind="stable")
     curve = pd.DataFrame({"model": model, "seed": run.seed, "iteration": metrics["iteration"].to_numpy(),
-                          "reward": metrics[REWARD].to_numpy()})
+                          "reward": metrics[REWARD_COLUMN].to_numpy()})
     times = [c for c in TIMINGS if c in metrics.columns]
     curve["seconds"] = metrics[times].sum(axis=1).to_numpy() if times else float("nan")
     return curve, None

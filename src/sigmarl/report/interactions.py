@@ -21,9 +21,9 @@ import math
 import numpy as np
 import pandas as pd
 
+from sigmarl.metrics import shown_unit
 from sigmarl.report.tdist import t_ppf
 from sigmarl.report.verdicts import (
-    METRICS,
     Design,
     Test,
     _p,
@@ -92,7 +92,7 @@ def interactions_markdown(table: pd.DataFrame, design: Design) -> str:
         "|---|---|---|---|---|---|---:|---:|---|",
     ]
     for _, r in table.iterrows():
-        unit = METRICS[r["metric"]][2]
+        unit = shown_unit(r["metric"])
         verdict = f"same within ±{r['margin']:g} {margin_unit(r['metric'])}" if r["verdict"] == "same" \
             else str(r["verdict"])
         lines.append(

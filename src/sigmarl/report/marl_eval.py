@@ -21,13 +21,10 @@ import math
 import numpy as np
 import pandas as pd
 
-from sigmarl.metrics import METRIC_COLUMNS
+from sigmarl.metrics import METRIC_COLUMNS, ROW_UNITS
 from sigmarl.report.tdist import t_ppf
 
 ENVIRONMENT = "sigmarl"
-METRICS = METRIC_COLUMNS
-UNITS = {"CR_total": "fraction of steps", "CR_AA": "fraction of steps", "CR_AL": "fraction of steps",
-         "CD": "cm", "AS": "m/s"}
 
 
 def _clean(values: np.ndarray) -> list[float | None]:
@@ -39,7 +36,7 @@ def marl_eval_data(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame |
     iterations = {}
     if curves is not None and len(curves) and "seed" in curves.columns:
         iterations = curves.groupby(["model", "seed"])["iteration"].max().to_dict()
-    metrics = [m for m in METRICS if m in rows.columns]
+    metrics = [m for m in METRIC_COLUMNS if m in rows.columns]
     tasks: dict = {}
     ordered = rows.sort_values(["seed", "simulation"], kind="stable")
     for scenario in dict.fromkeys(rows["scenario"]):
@@ -56,12 +53,12 @@ def marl_eval_data(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame |
 
 def interval_data(rows: pd.DataFrame, models: list[str], level: float = 0.95) -> dict:
     """Per task, algorithm and metric: mean over seeds, n seeds, z = t quantile, half-width."""
-    out: dict = {"environment": ENVIRONMENT, "level": level, "units": UNITS,
+    out: dict = {"environment": ENVIRONMENT, "level": level, "units": ROW_UNITS,
                  "note": "mean over seeds of each seed's mean over its simulations; half_width = "
                          "z * sd(seed means) / sqrt(n), z the Student t quantile with n - 1 degrees "
                          "of freedom (marl-eval's own helper assumes n = 10 and z = 1.96)",
                  "tasks": {}}
-    metrics = [m for m in METRICS if m in rows.columns]
+    metrics = [m for m in METRIC_COLUMNS if m in rows.columns]
     for scenario in dict.fromkeys(rows["scenario"]):
         sc = rows[rows["scenario"] == scenario]
         for model in models:

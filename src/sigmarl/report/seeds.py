@@ -12,7 +12,8 @@ import math
 
 import pandas as pd
 
-from sigmarl.report.aggregate import model_order, scaled, scenario_order
+from sigmarl.metrics import label, scaled
+from sigmarl.report.aggregate import model_order, scenario_order
 from sigmarl.report.tdist import t_sf
 from sigmarl.report.training import LAST
 from sigmarl.report.verdicts import _p
@@ -129,7 +130,8 @@ def seeds_markdown(table: pd.DataFrame, scenarios: list[str]) -> str:
         f"steps, each the seed's mean over its simulations; reward: mean episode reward over {LAST} "
         "iterations):",
         "",
-        f"| Model | seed | CR_total (%) | worst | CR_AA (%) | CR_AL (%) | CD (cm) | AS (m/s) | {reward_head} |",
+        f"| Model | seed | {label(RATES[0])} | worst | {label(RATES[1])} | {label(RATES[2])} | {label('CD')} | "
+        f"{label('AS')} | {reward_head} |",
         "|---|---:|---|---:|---|---|---|---|---|",
     ]
     for r in table.to_dict("records"):

@@ -40,8 +40,9 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
+from sigmarl.metrics import BY_NAME
 from sigmarl.report.tdist import normal_cdf, normal_ppf
-from sigmarl.report.verdicts import METRICS, Design, Test, comparisons, holm, verdict
+from sigmarl.report.verdicts import Design, Test, comparisons, holm, verdict
 
 _GRID = 2001  # points of the z grid
 _SPAN = 10.0  # the grid covers +-_SPAN standard deviations of B(1)
@@ -183,7 +184,7 @@ def next_round(
     previous = dict(previous or {})
     comps = comparisons(rows, design)
     tests = [c.test for c in comps]
-    directions = [METRICS[c.metric][1] for c in comps]
+    directions = [BY_NAME[c.metric].direction for c in comps]
     keys = [key(c.scenario, c.metric, c.variant) for c in comps]
     verdicts, p_diff, p_eq, levels = sequential_decide(
         tests, directions, [previous.get(k) for k in keys], n_start, design.max_seeds, design.alpha

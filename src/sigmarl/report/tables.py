@@ -13,10 +13,12 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-from sigmarl.metrics import LOWER_IS_BETTER, METRIC_COLUMNS, UNITS
+from sigmarl.metrics import LOWER_IS_BETTER, METRIC_COLUMNS, UNITS, label
 
 ROW_METRICS = [*METRIC_COLUMNS, "CS"]
 DIGITS = 2
+# how the baseline collides and drives, under each matrix
+BASELINE_PARTS = ("CR_AA", "CR_AL", "CD", "AS")
 MISSING = "–"
 
 
@@ -118,8 +120,7 @@ def _cells(
 
 def row_label(metric: str) -> str:
     """Row name with its unit as printed: "CR_AA (%)", "CD (cm)", "CS"."""
-    unit = {"percent": "%", "1": ""}.get(UNITS.get(metric, ""), UNITS.get(metric, ""))
-    return f"{metric} ({unit})" if unit else metric
+    return label(metric)
 
 
 def to_markdown(table: ResultTable, *, ci: bool = False, digits: int = DIGITS) -> str:
@@ -281,8 +282,7 @@ def matrix_markdown(table: ResultTable, baseline: str | None = None, metric: str
     values = table.values.xs(metric, level="metric")
     lo, hi = (t.xs(metric, level="metric") for t in (table.ci_low, table.ci_high))
     best = best_mask(table.values).xs(metric, level="metric")
-    unit = "%" if UNITS[metric] == "percent" else UNITS[metric]
-    lines = [f"{metric} ({unit}), mean over seeds [95% interval over seeds and simulations]; best per "
+    lines = [f"{label(metric)}, mean over seeds [95% interval over seeds and simulations]; best per "
              "scenario in bold:", "", "| Scenario | " + " | ".join(table.models) + " |",
              "|---|" + "---:|" * len(table.models)]
     for scenario in table.scenarios:
@@ -293,10 +293,10 @@ def matrix_markdown(table: ResultTable, baseline: str | None = None, metric: str
         lines.append(f"| {scenario} | " + " | ".join(cells) + " |")
     if baseline in table.models:
         lines += ["", f"{baseline}: how it collides, how it drives:", "",
-                  "| Scenario | CR_AA (%) | CR_AL (%) | CD (cm) | AS (m/s) |", "|---|---:|---:|---:|---:|"]
+                  "| Scenario | " + " | ".join(label(k) for k in BASELINE_PARTS) + " |", "|---|---:|---:|---:|---:|"]
         for scenario in table.scenarios:
             cells = [_interval(table.values.loc[(scenario, k), baseline], table.ci_low.loc[(scenario, k), baseline],
                                table.ci_high.loc[(scenario, k), baseline], digits)
-                     for k in ("CR_AA", "CR_AL", "CD", "AS")]
+                     for k in BASELINE_PARTS]
             lines.append(f"| {scenario} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"

@@ -36,16 +36,12 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
-from sigmarl.metrics import METRICS as METRIC_RECORDS
+from sigmarl.metrics import BY_NAME, METRICS, shown_unit
 from sigmarl.report.power import seeds_for_difference, seeds_for_equivalence
 from sigmarl.report.tdist import t_cdf, t_ppf, t_sf
 from sigmarl.report.variance import Components, components
 
-# metric -> (factor from the rows' units to the table's, +1 when higher is better, unit), from
-# the metrics' records
-METRICS = {m.name: (m.scale, -1 if m.lower_is_better else +1, {"percent": "%"}.get(m.unit, m.unit))
-           for m in METRIC_RECORDS}
-DEFAULT_MARGINS = {m.name: m.margin for m in METRIC_RECORDS}
+DEFAULT_MARGINS = {m.name: m.margin for m in METRICS}
 
 COLUMNS = [
     "scenario", "metric", "variant", "baseline", "n_variant", "n_baseline", "variant_mean",
@@ -74,9 +70,9 @@ class Design:
     max_seeds: int = 10
 
     def __post_init__(self):
-        unknown = [m for m in self.metrics if m not in METRICS]
+        unknown = [m for m in self.metrics if m not in BY_NAME]
         if unknown:
-            raise SigmarlError(f"no verdicts for metric(s) {', '.join(unknown)}; known: {', '.join(METRICS)}")
+            raise SigmarlError(f"no verdicts for metric(s) {', '.join(unknown)}; known: {', '.join(BY_NAME)}")
         missing = [m for m in self.metrics if m not in self.margins]
         if missing:
             raise SigmarlError(f"no equivalence margin for {', '.join(missing)}")
@@ -171,7 +167,7 @@ def holm(p_values: Sequence[float]) -> np.ndarray:
 
 def seed_values(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str], list[np.ndarray]]:
     """(model, scenario) -> per seed (ascending) its finite values of `metric`, in the table's units."""
-    scale = METRICS[metric][0]
+    scale = BY_NAME[metric].scale
     out: dict[tuple[str, str], list[np.ndarray]] = {}
     ordered = rows.sort_values(["seed", "simulation"], kind="stable")
     for (model, scenario, _), g in ordered.groupby(["model", "scenario", "seed"], sort=False):
@@ -254,7 +250,7 @@ def plan_seeds(c: Comparison, margin: float, alpha_diff: float, alpha_eq: float,
 def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
     """One row per comparison (COLUMNS), scenarios then metrics then variants in order."""
     comps = comparisons(rows, design)
-    directions = [METRICS[c.metric][1] for c in comps]
+    directions = [BY_NAME[c.metric].direction for c in comps]
     verdicts, p_diff, p_eq = decide([c.test for c in comps], directions, design.alpha)
     m = len(comps)
     open_diff = m - sum(v in ("better", "worse") for v in verdicts)
@@ -285,7 +281,7 @@ def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
 
 def margin_unit(metric: str) -> str:
     """The margin's unit: a difference of collision rates is in percentage points."""
-    unit = METRICS[metric][2]
+    unit = shown_unit(metric)
     return "pp" if unit == "%" else unit
 
 
@@ -324,7 +320,7 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
     if abs(design.alpha - 0.05) > 1e-12:
         lines[2] = lines[2].replace("95% CI", f"{100 * (1 - design.alpha):g}% CI")
     for _, r in table.iterrows():
-        unit = METRICS[r["metric"]][2]
+        unit = shown_unit(r["metric"])
         undecided = r["verdict"] == "undecided"
         needed = f"{_needed(r['seeds_needed'])} ({_needed(r['seeds_needed_unadjusted'])})" if undecided else "–"
         model = r["variant"] if design.one_baseline else f"{r['variant']} vs {r['baseline']}"

@@ -22,7 +22,7 @@ from sigmarl import crash
 from sigmarl.ablation import TIMINGS
 from sigmarl.errors import SigmarlError, end_status
 from sigmarl.metrics import METRIC_COLUMNS, METRICS
-from sigmarl.run import REWARD, ROWS_FILE
+from sigmarl.run import REWARD_COLUMN, ROWS_FILE
 from sigmarl.tracking.store import experiment_id
 
 if TYPE_CHECKING:  # pandas is imported where rows are read: a sweep's quick checks need only eval_key
@@ -147,7 +147,7 @@ def _last_per_step(client, run_id: str, metric: str) -> dict[int, float]:
     return {m.step: m.value for m in history}
 
 
-def load_training_curves(client, experiment: str, metric: str = REWARD) -> pd.DataFrame:
+def load_training_curves(client, experiment: str, metric: str = REWARD_COLUMN) -> pd.DataFrame:
     """(model, seed, iteration, reward, seconds) for the experiment's training runs; seconds:
     the iteration's compute time (NaN where the run logged no timings)."""
     import pandas as pd

@@ -18,13 +18,13 @@ from typing import Any
 from sigmarl.ablation import obs_strategies
 from sigmarl.config import Config, as_dict
 from sigmarl.errors import SigmarlError, raise_if_interrupted
-from sigmarl.run import REWARD
+from sigmarl.run import REWARD_COLUMN
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import experiment_id
 from sigmarl.tracking.tracker import TrainingRun
 
 # the metric whose history tells which iterations a training run already holds
-STEP_MARKER = REWARD
+STEP_MARKER = REWARD_COLUMN
 
 
 def _has_run(client: Any, run_id: str) -> bool:

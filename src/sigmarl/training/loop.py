@@ -22,7 +22,7 @@ from sigmarl.config import Config, PPOConfig, as_dict, to_yaml
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.paths import ensure_writable
 from sigmarl.progress import Progress
-from sigmarl.run import CONFIG_FILE, REWARD, RUN_ID_FILE, Run, write_atomic
+from sigmarl.run import CONFIG_FILE, REWARD_COLUMN, RUN_ID_FILE, Run, write_atomic
 from sigmarl.tracking import Tracker, TrainingRun, flatten, open_tracker
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
@@ -289,7 +289,7 @@ def _train(cfg: Config, run_dir: Path, tracker: Tracker | None) -> TrainResult:
             pending.append((done_its, metrics))
             metrics_file.append(metrics_path, done_its, metrics)
             crash.point(f"train:iteration:{done_its}")
-            reward = metrics[REWARD]
+            reward = metrics[REWARD_COLUMN]
             if best is None or round(reward, 2) > best:  # the paper: best reward to 2 decimals
                 best = round(reward, 2)
                 ckpt.save_atomic(ckpt.policy_only(snapshot(done_its, reward)), run_dir / ckpt.BEST_FILE)

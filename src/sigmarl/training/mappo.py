@@ -21,7 +21,7 @@ from sigmarl.training.networks import VALUE
 from sigmarl.training.ppo_loss import (
     ADVANTAGE,
     DONE,
-    REWARD,
+    REWARD_KEY,
     TERMINATED,
     TERMS,
     VALUE_TARGET,
@@ -34,7 +34,7 @@ __all__ = ["collect", "make_collector", "make_gae", "rollout_stats", "update"]
 def make_gae(critic: TensorDictModule, ppo: PPOConfig) -> GAE:
     gae = GAE(gamma=ppo.gamma, lmbda=ppo.lmbda, value_network=critic, average_gae=False, time_dim=1)
     gae.set_keys(
-        reward=REWARD,
+        reward=REWARD_KEY,
         done=DONE,
         terminated=TERMINATED,
         value=VALUE,
@@ -85,7 +85,7 @@ def mark_batch_end(data: TensorDictBase) -> TensorDictBase:
         truncated[:, -1] |= ~nxt["terminated"][:, -1]
         nxt["truncated"] = truncated
     # done flags are per environment [E, T, 1]; GAE wants them beside the per-agent rewards
-    shape = nxt.get(REWARD).shape
+    shape = nxt.get(REWARD_KEY).shape
     nxt.set(DONE, done.unsqueeze(-2).expand(shape))
     nxt.set(TERMINATED, nxt["terminated"].unsqueeze(-2).expand(shape))
     return data
@@ -97,7 +97,7 @@ def rollout_stats(data: TensorDictBase) -> dict[str, float]:
     Every step lies in exactly one episode that ends inside the rollout (the last step is
     done), so the mean episode reward is the reward sum over the number of agent-episodes.
     """
-    reward = data["next"].get(REWARD)
+    reward = data["next"].get(REWARD_KEY)
     n_agents = reward.shape[-2]
     episodes = data["next", "done"].sum() * n_agents
     stats = {

@@ -44,7 +44,7 @@ from sigmarl.training.networks import (
     tanh_log_jacobian,
 )
 
-REWARD = ("agents", "reward")
+REWARD_KEY = ("agents", "reward")
 DONE, TERMINATED = ("agents", "done"), ("agents", "terminated")
 ADVANTAGE, VALUE_TARGET = ("agents", "advantage"), ("agents", "value_target")
 TERMS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "clip_fraction", "kl_approx")
@@ -96,7 +96,7 @@ class TorchrlPPOLoss:
             functional=False,
         )
         self.loss.set_keys(
-            reward=REWARD, action=ACTION, sample_log_prob=LOG_PROB, value=VALUE, done=DONE,
+            reward=REWARD_KEY, action=ACTION, sample_log_prob=LOG_PROB, value=VALUE, done=DONE,
             terminated=TERMINATED, advantage=ADVANTAGE, value_target=VALUE_TARGET,
         )
 
