@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sigmarl.maps.osm import save_centerline_osm
+from sigmarl.maps.osm_write import save_centerline_osm
 
 ROOT = Path(__file__).resolve().parents[1]
 

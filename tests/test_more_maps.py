@@ -26,7 +26,8 @@ from sigmarl.env import make_env
 from sigmarl.env.spawn import MIN_GAP
 from sigmarl.maps import load_map
 from sigmarl.maps.multilane import project, substring
-from sigmarl.maps.osm import load_osm, save_centerline_osm
+from sigmarl.maps.osm import load_osm
+from sigmarl.maps.osm_write import save_centerline_osm
 from sigmarl.maps.routes import enumerate_routes
 from sigmarl.scenarios import scenario
 

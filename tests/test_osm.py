@@ -12,7 +12,8 @@ from sigmarl.errors import MapError, SigmarlError
 from sigmarl.maps import load_map
 from sigmarl.maps.cpm import CPM_LOOPS, load_cpm
 from sigmarl.maps.model import RoadMap
-from sigmarl.maps.osm import load_osm, save_lanelet2_osm
+from sigmarl.maps.osm import load_osm
+from sigmarl.maps.osm_write import save_lanelet2_osm
 
 DATA = Path(__file__).parent / "data"
 CENTERLINE = DATA / "centerline_ways.osm"

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from sigmarl.errors import MapError
-from sigmarl.maps.osm import save_centerline_osm
+from sigmarl.maps.osm_write import save_centerline_osm
 
 # Key in paper_test_maps.json -> the map's name in this project (conf/map/<name>.yaml).
 PAPER_MAPS = {
