@@ -1,4 +1,4 @@
-"""The route bank's per-point tables (`_follow`, `_local_runs`) against a plain
+"""The route bank's per-point tables (`follow_line`, `_local_runs`) against a plain
 element-by-element walk of the same rules, on every map config and on random lines."""
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ from sigmarl.compose import map_config
 from sigmarl.env.collision import segment_table
 from sigmarl.env.route_bank import (
     RouteBank,
-    _follow,
     _local_runs,
-    _segment_distances,
     _stack_lines,
+    follow_line,
     reaches,
+    segment_distances,
 )
 from sigmarl.maps import load_map
 
@@ -66,7 +66,7 @@ def runs_walk(d: np.ndarray, near, n_seg, is_loop, reach: float) -> np.ndarray:
 
 
 def check(dist: torch.Tensor, n_line: torch.Tensor, n_center: torch.Tensor, is_loop: torch.Tensor) -> None:
-    near = _follow(dist, n_line, n_center, is_loop)
+    near = follow_line(dist, n_line, n_center, is_loop)
     np.testing.assert_array_equal(near.numpy(), follow_walk(dist.numpy(), n_line, n_center, is_loop))
     for reach in (0.05, 0.4, 1.5):
         got = _local_runs(dist, near, n_line, is_loop, reach).numpy()
@@ -80,7 +80,7 @@ def test_tables_of_every_map(name):
     lines, n_lines = _stack_lines([[r.center] for r in routes])
     bounds, n_bounds = _stack_lines([[r.left, r.right] for r in routes])
     is_loop = torch.tensor([r.is_loop for r in routes])
-    seg_dist = _segment_distances(lines[:, 0], segment_table(bounds))
+    seg_dist = segment_distances(lines[:, 0], segment_table(bounds))
     check(seg_dist, n_bounds - 1, n_lines[:, 0], is_loop)
 
 

@@ -22,16 +22,16 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
+from sigmarl.report.folder import RunFolder, rows_of
+from sigmarl.report.sequential import key, next_round
+from sigmarl.report.verdicts import design_of
 from sigmarl.run import Run, write_atomic
+from sigmarl.sweep import launch, plan_sweep
 
 RECORD = "seeds_auto.json"
 
 
 def run_auto(user: Sequence[str]) -> int:
-    from sigmarl.report.sequential import key, next_round
-    from sigmarl.report.verdicts import design_of
-    from sigmarl.sweep import launch, plan_sweep
-
     plan = plan_sweep(user)
     study = plan.study
     labels = plan.labels
@@ -97,8 +97,6 @@ def _load(path: Path, identity: dict) -> dict | None:
 
 def _rows(plan) -> pd.DataFrame:
     """The evaluation rows of the plan's run folders, checked as `report --from` checks them."""
-    from sigmarl.report.folder import RunFolder, rows_of
-
     frames = [rows_of(RunFolder(j.label, j.seed, Path(j.run_dir))) for j in plan.jobs
               if Run(j.run_dir).rows_file.is_file()]
     return pd.concat(frames, ignore_index=True)

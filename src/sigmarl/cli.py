@@ -9,20 +9,22 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from sigmarl import __version__
+from sigmarl.config_help import describe, keys_epilog
 from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
-from sigmarl.paths import add_user_conf_dir
+from sigmarl.metrics import scaled, units_text
+from sigmarl.paths import add_user_conf_dir, config_files
 from sigmarl.resources import use_threads
 from sigmarl.scenarios import scenario_names
 
 
 def _map_names() -> list[str]:
-    from sigmarl.paths import config_files
-
     return sorted(config_files("map"))  # the package's and those of a --config-dir
 
 
 def _resolve_map(name: str, overrides: Sequence[str]):
     """A map by config name (conf/map/<name>.yaml) or by OSM file path."""
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config, map_config
     from sigmarl.maps import load_map
     from sigmarl.validate import check_map
@@ -51,6 +53,7 @@ def cmd_maps(args: argparse.Namespace) -> None:
         return
     if not args.map:
         raise SigmarlError("sigmarl maps show needs a map name, e.g. `sigmarl maps show cpm`")
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.maps.plot import save_map_figure
 
     m = _resolve_map(args.map, args.overrides)
@@ -60,6 +63,7 @@ def cmd_maps(args: argparse.Namespace) -> None:
 
 
 def cmd_train(args: argparse.Namespace) -> None:
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config
 
     cfg = compose_config(args.overrides)  # a bad override is answered before torch is imported
@@ -74,6 +78,7 @@ def cmd_train(args: argparse.Namespace) -> None:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config
     from sigmarl.evaluation.target import resolve_checkpoint
 
@@ -83,7 +88,6 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     path = resolve_checkpoint(args.target, cfg)  # a wrong path is answered before torch is imported
     use_threads(cfg.threads)
     from sigmarl.evaluation.protocol import evaluate_and_log, rows_file_for
-    from sigmarl.metrics import scaled, units_text
 
     rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
     rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
@@ -103,6 +107,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         from sigmarl.adaptive import run_auto
 
         return run_auto(rest)
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.sweep import run_sweep
 
     return run_sweep(args.overrides)
@@ -119,6 +124,7 @@ def cmd_report(args: argparse.Namespace) -> None:
         print(plan_from_folder([Path(s) for s in args.source], args.models.split(",") if args.models else None,
                                study=study), end="")
         return
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config
     from sigmarl.tracking.store import missing_store
 
@@ -163,6 +169,7 @@ def _disk_full(error: BaseException) -> str | None:
 def print_cfg(args: argparse.Namespace) -> int:
     """`--cfg job|hydra|all`, as in Hydra apps: the config the command would run with (composed
     and resolved; a sweep prints each job's), Hydra's own settings, or both."""
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from omegaconf import OmegaConf
 
     from sigmarl.compose import compose_config, hydra_config
@@ -200,6 +207,7 @@ class _PrintAndExit(argparse.Action):
 
 
 def _completion(parser: argparse.ArgumentParser, shell: str) -> str:
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.completion import bash_script
 
     return bash_script(parser)
@@ -207,12 +215,11 @@ def _completion(parser: argparse.ArgumentParser, shell: str) -> str:
 
 def _info(parser: argparse.ArgumentParser, key: str | None) -> str:
     if key:
-        from sigmarl.config_help import describe
-
         try:
             return describe(key)
         except SigmarlError as e:
             parser.exit(2, f"sigmarl: error: {e}\n")
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.completion import info
 
     return info()
@@ -227,15 +234,11 @@ class _KeysHelp(argparse.RawDescriptionHelpFormatter):
 
     def add_text(self, text: str | None) -> None:
         if text == _KEYS:
-            from sigmarl.config_help import keys_epilog
-
             text = keys_epilog()
         super().add_text(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from sigmarl import __version__
-
     p = argparse.ArgumentParser(
         prog="sigmarl",
         description="The SigmaRL observation-design ablation study: maps, environment, MAPPO training, evaluation, report.",

@@ -4,10 +4,14 @@ every key of the schema, read from the config folder and the schema (no extra de
 from __future__ import annotations
 
 import argparse
+import platform
 import shlex
 from importlib import metadata
 
+import sigmarl
 from sigmarl.paths import conf_dir
+from sigmarl.scenarios import scenario_names
+from sigmarl.suggest import schema_keys
 
 GROUPS = ("map", "obs", "network", "ppo", "study", "hydra/launcher")
 BUILTIN_LAUNCHERS = ("basic", "joblib")  # Hydra's own and the joblib plugin's, not in conf/
@@ -24,8 +28,6 @@ def group_options(group: str) -> list[str]:
 
 def override_words(sweep: bool = False) -> list[str]:
     """`group=option` for every group option and `key=` for every settable key."""
-    from sigmarl.suggest import schema_keys
-
     words = [f"{g}={o}" for g in GROUPS for o in group_options(g)]
     keys = schema_keys()
     # the leaves; `model` follows from the obs flags and is never set
@@ -71,11 +73,6 @@ def bash_script(parser: argparse.ArgumentParser) -> str:
 
 def info() -> str:
     """`sigmarl --info`: versions, where the configs are, the groups and their options."""
-    import platform
-
-    import sigmarl
-    from sigmarl.scenarios import scenario_names
-
     def version(package: str) -> str:
         try:
             return metadata.version(package)

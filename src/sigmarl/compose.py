@@ -22,6 +22,7 @@ from sigmarl.config import Config, MapConfig, as_config, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import fingerprint
 from sigmarl.paths import conf_dir, config_files, user_conf_dirs
+from sigmarl.scenarios import scenario
 from sigmarl.suggest import hydra_error_message, unknown_keys_message
 from sigmarl.validate import check
 
@@ -126,6 +127,4 @@ def map_config(name: str) -> MapConfig:
 
 def scenario_map_config(name: str) -> MapConfig:
     """The map config of an evaluation scenario (conf/scenario/<name>.yaml names it)."""
-    from sigmarl.scenarios import scenario
-
     return map_config(scenario(name).map)

@@ -60,6 +60,7 @@ def _summary(cls: type) -> str:
 def key_help(schema: type | None = None) -> tuple[KeyHelp, ...]:
     """Every key of the schema (default: `sigmarl.config.Config`), groups first-class, in order."""
     if schema is None:
+        # lazy: the parser's key list is built without omegaconf (start-up)
         from sigmarl.config import Config
 
         schema = Config
@@ -83,6 +84,7 @@ def describe(query: str) -> str:
     keys = key_help()
     hits = [k for k in keys if k.key == query or k.key.startswith(query + ".")]
     if not hits:
+        # lazy: the parser's key list is built without omegaconf (start-up)
         from sigmarl.suggest import did_you_mean
 
         raise SigmarlError(f"no config key {query!r}{did_you_mean(query, [k.key for k in keys])}; "

@@ -16,6 +16,7 @@ import json
 import re
 from typing import TYPE_CHECKING, Any
 
+from sigmarl.config import as_dict, flatten
 from sigmarl.errors import SigmarlError
 
 if TYPE_CHECKING:
@@ -30,8 +31,6 @@ _LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 
 def training_settings(cfg: Config) -> dict[str, Any]:
     """The flat training settings the fingerprint covers."""
-    from sigmarl.config import as_dict, flatten
-
     values = as_dict(cfg)
     flat = flatten({g: values[g] for g in TRAINING_GROUPS if g in values})
     return {k: v for k, v in flat.items() if k not in NOT_TRAINING}

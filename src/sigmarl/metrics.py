@@ -8,6 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from sigmarl.errors import SigmarlError
+
 if TYPE_CHECKING:  # pandas is imported where rows are read
     import pandas as pd
 
@@ -88,8 +90,6 @@ def scaled(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def metric(name: str) -> Metric:
-    from sigmarl.errors import SigmarlError
-
     if name not in BY_NAME:
         raise SigmarlError(f"unknown metric {name!r}; choose from {', '.join(BY_NAME)}")
     return BY_NAME[name]

@@ -15,7 +15,10 @@ sweep's job processes.
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
+
+from sigmarl.errors import SigmarlError
 
 CONFIG_PATH = "SIGMARL_CONFIG_PATH"
 
@@ -34,8 +37,6 @@ def user_conf_dirs() -> list[Path]:
 
 def add_user_conf_dir(folder: str | Path) -> None:
     """Search `folder` before the package's conf/ (here and in every process started from here)."""
-    from sigmarl.errors import SigmarlError
-
     path = Path(folder).expanduser().resolve()
     if not path.is_dir():
         raise SigmarlError(f"--config-dir {folder}: no such folder")
@@ -60,9 +61,6 @@ def config_files(group: str) -> dict[str, Path]:
 def ensure_writable(folder: Path, what: str) -> None:
     """Create `folder` and check that a file can be written there, before any work; otherwise
     a SigmarlError naming it and `what` to do ("choose another run_dir=...")."""
-    import tempfile
-
-    from sigmarl.errors import SigmarlError
 
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -46,6 +46,7 @@ class Progress:
         self.bar = None
         self.enabled = enabled
         if enabled and not plain_lines():
+            # lazy: tqdm only where a bar is drawn (start-up)
             from tqdm.auto import tqdm
 
             self.bar = tqdm(total=total, initial=initial, desc=f"{label}: {what}", dynamic_ncols=True, leave=False)

@@ -5,8 +5,15 @@ many more cores than a job got), and the sweep's folder as the working folder.""
 from __future__ import annotations
 
 import os
+import signal
+import socket
+import sys
+import threading
+import time
 from collections.abc import Mapping, Sequence
 from typing import Any
+
+from sigmarl.errors import SigmarlError
 
 SWEEP_DIR = "SIGMARL_SWEEP_DIR"  # set by Hydra around each job of `sigmarl sweep`
 
@@ -30,6 +37,7 @@ def granted_threads(launcher: Mapping[str, Any], environ: Mapping[str, str] = os
 def job_threads(configured: int) -> int:
     """`threads` for the running Hydra job: the user's `threads=` override if given, else
     granted_threads from the job's launcher config and environment."""
+    # lazy: the CLI imports this at start-up; Hydra only inside a sweep job
     from hydra.core.hydra_config import HydraConfig
 
     if SWEEP_DIR not in os.environ or not HydraConfig.initialized():  # not a sweep job
@@ -46,10 +54,9 @@ def user_set(key: str, overrides: Sequence[str]) -> bool:
 
 def _ray_cpus() -> float | None:
     """The CPUs Ray assigned to the current task; None outside a Ray worker."""
-    import sys
-
     if "ray" not in sys.modules:
         return None
+    # optional: Ray only inside a Ray worker
     import ray
 
     if not ray.is_initialized():
@@ -79,8 +86,6 @@ OWNER_POLL_S = 2.0
 
 def sweep_owner_override() -> list[str]:
     """Hands the sweep's process id and host to its jobs (see `end_with_the_sweep`)."""
-    import socket
-
     return [f"++hydra.job.env_set.{SWEEP_OWNER}='{os.getpid()} {socket.gethostname()}'"]
 
 
@@ -89,18 +94,12 @@ def end_with_the_sweep() -> None:
     the job as interrupted (SIGTERM to itself: checkpoint-safe, resumable) once the sweep's
     process is gone, so a sweep killed with kill -9 leaves no worker training on behind it.
     A job on another machine (SLURM, Ray) lives by its scheduler's rules instead."""
-    import signal
-    import socket
-    import threading
-
     owner = os.environ.get(SWEEP_OWNER, "").split()
     if len(owner) != 2 or owner[1] != socket.gethostname() or int(owner[0]) == os.getpid():
         return
     pid = int(owner[0])
 
     def watch() -> None:
-        import time
-
         while True:
             time.sleep(OWNER_POLL_S)
             try:
@@ -119,9 +118,8 @@ def use_threads(threads: int) -> None:
     """torch's CPU threads for this process: every command that computes sets them here from
     its composed config (`threads`), right before its work (torch is imported only then)."""
     if threads < 1:
-        from sigmarl.errors import SigmarlError
-
         raise SigmarlError(f"threads must be positive, got {threads}")
+    # lazy: torch only right before the work (start-up)
     import torch
 
     torch.set_num_threads(threads)

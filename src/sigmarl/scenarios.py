@@ -44,6 +44,7 @@ def scenario(name: str) -> Scenario:
 
 @cache
 def _read(name: str, path: Path) -> Scenario:
+    # lazy: the CLI imports this at start-up; omegaconf only to read a scenario
     from omegaconf import OmegaConf
     from omegaconf.errors import OmegaConfBaseException
 

@@ -18,6 +18,9 @@ from typing import Literal, get_args
 from sigmarl.ablation import check_eval
 from sigmarl.config import Config, MapConfig
 from sigmarl.errors import SigmarlError
+from sigmarl.identity import check_label
+from sigmarl.metrics import metric
+from sigmarl.tracking.tracker import tracker_class
 
 MapKind = Literal["cpm", "intersection", "on_ramp", "roundabout", "osm"]
 RouteSet = Literal["intersection", "loops"]  # the CPM map's
@@ -87,7 +90,6 @@ def check(cfg: Config) -> Config:
     _check_ppo(cfg)
     check_eval(cfg.eval)
     _check_experiment(cfg.tracking.experiment)
-    from sigmarl.tracking.tracker import tracker_class
 
     tracker_class(cfg.tracking.backend)  # a backend that cannot be imported ends here, not after training
     _check_study(cfg)
@@ -114,9 +116,6 @@ def check_finite(node: object, prefix: str = "") -> None:
 
 def _check_study(cfg: Config) -> None:
     """The study's declaration (conf/study/*.yaml) and the run's label."""
-    from sigmarl.identity import check_label
-    from sigmarl.metrics import metric
-
     study = cfg.study
     check_label(cfg.model)
     for label, overrides in study.variants.items():

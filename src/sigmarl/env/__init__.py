@@ -9,6 +9,7 @@ __all__ = ["make_env"]
 
 def __getattr__(name: str):
     if name == "make_env":
+        # lazy: importing sigmarl.env costs no VMAS until an environment is made
         from sigmarl.env.factory import make_env
 
         return make_env

@@ -22,6 +22,8 @@ from sigmarl.env.collision import nearest_on_segments, segment_table
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import wrap_angle
 from sigmarl.env.params import NORMALISERS
+from sigmarl.env.route_bank import follow_line, segment_distances
+from sigmarl.maps.routes import extend_straight, join_polylines
 
 if TYPE_CHECKING:
     from sigmarl.config import RulesConfig
@@ -146,8 +148,6 @@ def cut(points: np.ndarray, pieces: np.ndarray) -> tuple[np.ndarray, np.ndarray,
 
 
 def _raw_center(road_map: RoadMap, route) -> np.ndarray:
-    from sigmarl.maps.routes import extend_straight, join_polylines
-
     line = join_polylines(road_map.lanelets[i].center for i in route.lanelet_ids)
     if route.is_loop:
         line = join_polylines([line, line[:1]])
@@ -178,15 +178,13 @@ class RawGeometry:
     boundary points at raw boundary vertices, for all agents at once."""
 
     def __init__(self, bank: RouteBank, road_map: RoadMap, ref_stride: int, n_ref: int, device, dtype=torch.float32):
-        from sigmarl.env.route_bank import _follow, _segment_distances
-
         routes = road_map.routes
         loop = bank.is_loop.cpu()
         raw, n_raw = _pad([_raw_center(road_map, r) for r in routes])  # [R, V, 2] float64
         # The raw segment that goes with each resampled center point, followed along the route.
         center = bank.lines[:, 0].cpu().double()
-        dist = _segment_distances(center, segment_table(raw.unsqueeze(1)))  # [R, 1, M, V-1]
-        near = _follow(dist, (n_raw - 1).unsqueeze(-1), bank.n_center.cpu(), loop)[:, 0]  # [R, M]
+        dist = segment_distances(center, segment_table(raw.unsqueeze(1)))  # [R, 1, M, V-1]
+        near = follow_line(dist, (n_raw - 1).unsqueeze(-1), bank.n_center.cpu(), loop)[:, 0]  # [R, M]
         offsets = torch.arange(*RAW_WINDOW)
         idx = _indices(near.unsqueeze(-1) + offsets, n_raw[:, None, None], loop[:, None, None])
         r = torch.arange(len(routes))[:, None, None].expand_as(idx)

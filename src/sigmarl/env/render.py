@@ -227,6 +227,7 @@ def _writer_for(path: Path) -> Callable[[Path, list[np.ndarray], int], None]:
 
 
 def _write_gif(path: Path, frames: list[np.ndarray], fps: int) -> None:
+    # optional: only GIF output needs Pillow
     from PIL import Image
 
     # Fast octree quantisation per frame: ~2.5x faster than Pillow's default median cut, and
@@ -239,6 +240,7 @@ def _write_gif(path: Path, frames: list[np.ndarray], fps: int) -> None:
 
 
 def _write_mp4(path: Path, frames: list[np.ndarray], fps: int) -> None:
+    # optional: only MP4 output needs imageio
     import imageio.v2 as imageio
 
     # yuv420p needs even sizes; macro_block_size=2 pads at most one pixel instead of 16.

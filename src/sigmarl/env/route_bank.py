@@ -69,7 +69,7 @@ class RouteBank:
         # Boundary points and segments that go with each center point: followed along the
         # route, so that where a route crosses itself the other pass is never taken for it.
         point_dist = torch.cdist(center.unsqueeze(1), sides)  # [R, 2, M, K]
-        self.to_sides = _follow(point_dist, n_sides, self.n_center, self.is_loop).permute(0, 2, 1).contiguous()
+        self.to_sides = follow_line(point_dist, n_sides, self.n_center, self.is_loop).permute(0, 2, 1).contiguous()
         # Direction of the center line at each point (a loop's last point faces its first).
         nxt = torch.roll(center, -1, dims=1)
         last = self.n_center - 1
@@ -81,9 +81,9 @@ class RouteBank:
         self.heading = torch.atan2(seg[..., 1], seg[..., 0])  # [R, M]
 
         table = segment_table(bounds)  # [R, 5, 2, S]
-        seg_dist = _segment_distances(center, table)  # [R, 2, M, S]
+        seg_dist = segment_distances(center, table)  # [R, 2, M, S]
         n_seg = n_bounds - 1
-        near = _follow(seg_dist, n_seg, self.n_center, self.is_loop)  # [R, 2, M]
+        near = follow_line(seg_dist, n_seg, self.n_center, self.is_loop)  # [R, 2, M]
         self.bounds = table.to(dtype=dtype, device=device)
         # How far a boundary lies from its center line on this map (0.225 m on CPM's two-lane
         # corridors), and from it the reach of the two boundary windows (see `reaches`).
@@ -171,7 +171,7 @@ def reaches(extent: float) -> tuple[float, float]:
     return extent + 0.3, 3 * extent + 2 * HALF_DIAGONAL + 0.1
 
 
-def _segment_distances(points: torch.Tensor, table: torch.Tensor) -> torch.Tensor:
+def segment_distances(points: torch.Tensor, table: torch.Tensor) -> torch.Tensor:
     """Distance from every point [R, M, 2] to every segment of a `segment_table` [R, 5, C, S]:
     [R, C, M, S]."""
     px, py = points[..., 0][:, None, :, None], points[..., 1][:, None, :, None]  # [R, 1, M, 1]
@@ -185,7 +185,7 @@ def _step(j: int, k: int, n: int, loop: bool) -> int:
     return (j + k) % n if loop else min(max(j + k, 0), n - 1)
 
 
-def _follow(dist: torch.Tensor, n_line: torch.Tensor, n_center: torch.Tensor, is_loop: torch.Tensor,
+def follow_line(dist: torch.Tensor, n_line: torch.Tensor, n_center: torch.Tensor, is_loop: torch.Tensor,
             ahead: int = 8) -> torch.Tensor:
     """For each center point, the element (point or segment) of each line that goes with it.
 

@@ -11,6 +11,8 @@ from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.env.render import render_rollout
 from sigmarl.scenarios import scenario as scenario_of
+from sigmarl.training import checkpoint as ckpt
+from sigmarl.training.loop import load_policy
 
 
 def animate_checkpoint(path: Path, scenarios: list[str], steps: int, seed: int, out_dir: Path,
@@ -19,9 +21,6 @@ def animate_checkpoint(path: Path, scenarios: list[str], steps: int, seed: int, 
 
     Policy and environment run on `device`, the command's (as `sigmarl evaluate` does), never
     on the device the checkpoint was trained on: a GPU-trained model animates on a CPU machine."""
-    from sigmarl.training import checkpoint as ckpt
-    from sigmarl.training.loop import load_policy
-
     out = {}
     for scenario in scenarios:
         n_agents = scenario_of(scenario).n_agents

@@ -28,14 +28,13 @@ from sigmarl.paths import ensure_writable
 from sigmarl.run import ROWS_FILE, ROWS_META, Run, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker, open_tracker
+from sigmarl.training import checkpoint as ckpt
+from sigmarl.training.loop import load_policy
 
 
 def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] | None = None,
                         device: str = "cpu", progress: bool = True) -> tuple[pd.DataFrame, dict]:
     """Per-simulation rows of a trained policy on each scenario, and the checkpoint's state."""
-    from sigmarl.training import checkpoint as ckpt
-    from sigmarl.training.loop import load_policy
-
     scenarios = check_eval(eval_cfg, scenarios or None)
     frames = []
     state = None
@@ -129,8 +128,6 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
     before logging, and rows saved by an earlier attempt under the same protocol and
     checkpoint are logged without evaluating again.
     """
-    from sigmarl.training import checkpoint as ckpt
-
     tracker = tracker or open_tracker(cfg)  # the store is checked before evaluating
     identity = _identity(path, cfg) if rows_file is not None else {}
     rows = _saved_rows(rows_file, identity) if rows_file is not None else None

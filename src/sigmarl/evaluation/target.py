@@ -28,6 +28,7 @@ def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = Non
         if found.is_file():
             return found
         raise SigmarlError(f"{path} holds no {found.name} (has the training finished? see eval.checkpoint)")
+    # lazy: a wrong path is answered without MLflow (start-up)
     from sigmarl.tracking.store import missing_store
 
     if db := missing_store(cfg):  # nowhere to look the run id up: create no empty store

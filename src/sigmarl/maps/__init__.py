@@ -17,6 +17,7 @@ def load_map(cfg: MapConfig) -> RoadMap:
     """Build the RoadMap a `MapConfig` describes."""
     kind = cfg.kind
     if kind == "cpm":
+        # lazy: each loader (XML, geometry) only for its kind of map
         from sigmarl.maps.cpm import load_cpm
 
         return load_cpm(cfg.route_set)

@@ -19,6 +19,7 @@ from sigmarl.errors import SigmarlError
 from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS, UNITS, scaled
 from sigmarl.report import bootstrap as bs
 from sigmarl.report.stats import mean_ci
+from sigmarl.scenarios import scenario_names
 
 SUMMARY_COLUMNS = [
     "scenario", "model", "metric", "unit", "mean", "ci_low", "ci_high", "std", "n", "n_seeds", "seed_std",
@@ -93,8 +94,6 @@ def model_order(rows: pd.DataFrame, models: list[str] | None = None,
 
 def scenario_order(rows: pd.DataFrame) -> list[str]:
     """The rows' scenarios: Table I's four in the paper's order, then the others by name."""
-    from sigmarl.scenarios import scenario_names
-
     return _known_first(list(dict.fromkeys(rows["scenario"])), scenario_names())
 
 

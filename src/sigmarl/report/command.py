@@ -12,6 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sigmarl.config import Config
+from sigmarl.errors import SigmarlError
+from sigmarl.report.aggregate import label_order
 from sigmarl.report.build import Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_many, read_results
 from sigmarl.report.verdicts import design_of
@@ -102,7 +104,6 @@ def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callab
 def _study_labels(rows, declared: list[str]) -> list[str] | None:
     """The labels in the rows that belong to the study (its variants, and those a sweep derived
     from them, e.g. M0_hidden-64-64), in the study's order; None (all labels) if none does."""
-    from sigmarl.report.aggregate import label_order
 
     present = list(dict.fromkeys(rows["model"].astype(str)))
     ours = [m for m in present if any(m == v or m.startswith(v + "_") for v in declared)]
@@ -111,7 +112,7 @@ def _study_labels(rows, declared: list[str]) -> list[str] | None:
 
 def _folder_checkpoint(results, root: Path, cfg: Config) -> Path:
     """The baseline's evaluated checkpoint (its first seed) in a results folder."""
-    from sigmarl.errors import SigmarlError
+    # lazy: torch only where a checkpoint is named
     from sigmarl.evaluation.protocol import checkpoint_name
 
     baseline = cfg.study.baseline
@@ -147,6 +148,7 @@ def publish(report: Report, staging: Path, out_dir: Path) -> None:
 
 def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
     """The maps the scenarios ran on, as the evaluation builds them."""
+    # lazy: Hydra and the maps only where map figures are drawn
     from sigmarl.compose import scenario_map_config
     from sigmarl.maps import load_map
     from sigmarl.maps.plot import save_scenario_maps
@@ -158,8 +160,6 @@ def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
 def _mlflow_checkpoint(client, experiment: str, baseline: str) -> Path:
     """The baseline's evaluated checkpoint (its first seed) as recorded in MLflow, if on this
     machine."""
-    from sigmarl.errors import SigmarlError
-
     path = records.evaluated_checkpoint(client, experiment, baseline)
     if path is None:
         raise SigmarlError(f"animations need {baseline}'s evaluated checkpoint on this machine; none found")
@@ -169,6 +169,7 @@ def _mlflow_checkpoint(client, experiment: str, baseline: str) -> Path:
 def _animations(path: Path, cfg: Config, out_dir: Path, steps: int, scenarios: list[str]) -> dict[str, Path]:
     """One GIF per scenario of checkpoint `path` driving (evaluation's work; the report only
     collects the files)."""
+    # lazy: torch only for --animations
     from sigmarl.evaluation.animation import animate_checkpoint
 
     return animate_checkpoint(path, scenarios, steps, int(cfg.eval.seed), out_dir, device=cfg.device)

@@ -6,9 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
 from sigmarl.metrics import BY_NAME, label
+from sigmarl.report import bootstrap as bs
+from sigmarl.report.profiles import scenario_profiles, seed_band
+from sigmarl.report.verdicts import seed_values
 
 DISTRIBUTION_METRICS = {name: (label(name), BY_NAME[name].scale) for name in ("CR_total", "CD", "AS")}
 
@@ -112,9 +116,6 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
     """rliable-style performance profiles of CR_total: per model, the fraction of simulations
     with CR_total above tau, one panel per scenario and one over all scenarios (their mean),
     with 95% two-level (seeds, then simulations) bootstrap bands. Lower is better."""
-    from sigmarl.report.profiles import scenario_profiles
-    from sigmarl.report.verdicts import seed_values
-
     values = seed_values(rows, "CR_total")  # in %
     panels = [*scenarios, "all scenarios"]
     fig = Figure(figsize=(3.4 * len(panels), 3.0), layout="constrained")
@@ -148,9 +149,6 @@ def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str] | Non
                        n_boot: int = 2000) -> Path:
     """Mean episode reward per iteration over seeds, with the 95% bootstrap band of that mean
     over resampled seeds (`profiles.seed_band`); one line per model."""
-    from sigmarl.report import bootstrap as bs
-    from sigmarl.report.profiles import seed_band
-
     curves = curves.assign(model=curves["model"].astype(str))
     models = models or list(dict.fromkeys(curves["model"]))
     fig = Figure(figsize=(6.4, 4.0), layout="constrained")
@@ -180,8 +178,6 @@ def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str],
     """A models x scenarios matrix of one metric's estimates (the table's cells), each cell
     annotated with its estimate and 95 % interval; colour on a log scale, so that 0.05 % and
     5 % both show."""
-    from matplotlib.colors import LogNorm
-
     cells = summary[summary["metric"] == metric].set_index(["model", "scenario"])
     mean = np.array([[cells["mean"].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
     lo = np.array([[cells["ci_low"].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)

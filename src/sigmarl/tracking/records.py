@@ -61,6 +61,7 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
     Runs of the same training run and protocol that an earlier, killed attempt left RUNNING
     (or ended FAILED/KILLED) are deleted first: they hold part of what this run logs.
     """
+    # lazy: MLflow (~1 s) and pandas only where a store or rows are used
     from mlflow.entities import Metric, Param
 
     if tags.get("train_run_id"):
@@ -114,6 +115,7 @@ def _ended(client, rid: str) -> Iterator[None]:
 
 def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
     """All per-simulation rows of the experiment's finished evaluation runs."""
+    # lazy: MLflow (~1 s) and pandas only where a store or rows are used
     import pandas as pd
 
     exp_id = experiment_id(client, experiment)
@@ -150,6 +152,7 @@ def _last_per_step(client, run_id: str, metric: str) -> dict[int, float]:
 def load_training_curves(client, experiment: str, metric: str = REWARD_COLUMN) -> pd.DataFrame:
     """(model, seed, iteration, reward, seconds) for the experiment's training runs; seconds:
     the iteration's compute time (NaN where the run logged no timings)."""
+    # lazy: MLflow (~1 s) and pandas only where a store or rows are used
     import pandas as pd
 
     columns = ["model", "seed", "iteration", "reward", "seconds"]

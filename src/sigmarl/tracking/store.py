@@ -26,9 +26,12 @@ import sqlite3
 import sys
 import tempfile
 import time
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import urlparse
+
+from filelock import FileLock, Timeout
 
 from sigmarl.errors import SigmarlError, held_signals
 
@@ -53,6 +56,7 @@ def tracking_uri(cfg: Config) -> str:
     # called mlflow.set_tracking_uri: the variable, else ./mlflow.db unless ./mlruns holds runs
     if "mlflow" not in sys.modules and not Path("mlruns").exists():
         return os.environ.get("MLFLOW_TRACKING_URI") or f"sqlite:///{Path('mlflow.db').absolute()}"
+    # lazy: MLflow (~1 s) only where a store is opened (start-up)
     from mlflow.tracking import get_tracking_uri
 
     return get_tracking_uri()
@@ -95,7 +99,6 @@ def connect(cfg: Config, write: bool = True):
     if db is None or (not write and db.is_file()):
         return _open(uri)
     _probe_sqlite(db)
-    from filelock import FileLock, Timeout
 
     try:
         with FileLock(str(db) + ".lock", timeout=LOCK_TIMEOUT_S):
@@ -132,6 +135,7 @@ def _first_line(e: BaseException) -> str:
 
 
 def _open(uri: str):
+    # lazy: MLflow (~1 s) only where a store is opened (start-up)
     from mlflow import MlflowClient
 
     try:
@@ -209,8 +213,6 @@ def _remove(db: Path) -> None:
 def _template() -> Path | None:
     """Where an empty store of the installed MLflow version is kept; None if MLflow is not
     installed as a distribution (then its schema cannot be told apart by version)."""
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         mlflow_version = version("mlflow")
     except PackageNotFoundError:
@@ -281,6 +283,7 @@ def _drop_stale_saves(template: Path) -> None:
 def _forget_engines(db: Path) -> None:
     """Close this process's connections to `db`: MLflow keeps one engine per URI, whose
     pooled connections would go on reading a deleted file."""
+    # lazy: MLflow (~1 s) only where a store is opened (start-up)
     from mlflow.store.tracking.sqlalchemy_store import SqlAlchemyStore
 
     for key, engine in list(SqlAlchemyStore._engine_map.items()):
@@ -290,6 +293,7 @@ def _forget_engines(db: Path) -> None:
 
 
 def _open_raw(uri: str):
+    # lazy: MLflow (~1 s) only where a store is opened (start-up)
     from mlflow import MlflowClient
 
     client = SignalSafeClient(MlflowClient(tracking_uri=uri))
@@ -323,6 +327,7 @@ def experiment_id(client, name: str, create: bool = False) -> str | None:
         return exp.experiment_id
     if not create:
         return None
+    # lazy: MLflow (~1 s) only where a store is opened (start-up)
     from mlflow.exceptions import MlflowException
 
     try:

@@ -28,6 +28,7 @@ STEP_MARKER = REWARD_COLUMN
 
 
 def _has_run(client: Any, run_id: str) -> bool:
+    # lazy: MLflow (~1 s) only where a store is used (start-up)
     from mlflow.exceptions import MlflowException
 
     try:
@@ -109,6 +110,7 @@ class MlflowTrainingRun(TrainingRun):
             self._guard("set_tag", key, value)
 
     def log_params(self, params: Mapping[str, str]) -> None:
+        # lazy: MLflow (~1 s) only where a store is used (start-up)
         from mlflow.entities import Param
 
         items = [Param(k, v[:6000]) for k, v in params.items()]
@@ -120,6 +122,7 @@ class MlflowTrainingRun(TrainingRun):
         batch, so a batch that fails leaves no iteration half logged."""
         if not rows:
             return
+        # lazy: MLflow (~1 s) only where a store is used (start-up)
         from mlflow.entities import Metric
 
         now = int(time.time() * 1000)
