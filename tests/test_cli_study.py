@@ -8,7 +8,8 @@ from sigmarl.cli import main
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
 from sigmarl.run import FAILED_FILE
-from sigmarl.sweep import plan_sweep, run_job
+from sigmarl.sweep import plan_sweep
+from sigmarl.sweep.job import run_job
 from sigmarl.tracking import connect
 
 

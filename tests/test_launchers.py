@@ -21,7 +21,7 @@ from mlflow import MlflowClient
 from sigmarl.cli import main
 from sigmarl.compose import compose_config
 from sigmarl.resources import granted_threads, job_threads
-from sigmarl.sweep import run_job
+from sigmarl.sweep.job import run_job
 
 
 def test_slurm_grant_wins_over_everything():

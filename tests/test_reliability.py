@@ -27,7 +27,7 @@ from mlflow import MlflowClient
 
 from sigmarl.cli import main
 from sigmarl.compose import compose_config
-from sigmarl.sweep import run_job
+from sigmarl.sweep.job import run_job
 from sigmarl.tracking import connect
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import train

@@ -10,9 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from sigmarl import __version__
-from sigmarl.config_help import describe, keys_epilog
 from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
-from sigmarl.metrics import scaled, units_text
 from sigmarl.paths import add_user_conf_dir, config_files
 from sigmarl.resources import use_threads
 from sigmarl.scenarios import scenario_names
@@ -88,6 +86,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     path = resolve_checkpoint(args.target, cfg)  # a wrong path is answered before torch is imported
     use_threads(cfg.threads)
     from sigmarl.evaluation.protocol import evaluate_and_log, rows_file_for
+    from sigmarl.metrics import scaled, units_text
 
     rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
     rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
@@ -215,6 +214,9 @@ def _completion(parser: argparse.ArgumentParser, shell: str) -> str:
 
 def _info(parser: argparse.ArgumentParser, key: str | None) -> str:
     if key:
+        # lazy: config_help's dataclass introspection costs `sigmarl --help` a third of its start-up
+        from sigmarl.config_help import describe
+
         try:
             return describe(key)
         except SigmarlError as e:
@@ -234,6 +236,9 @@ class _KeysHelp(argparse.RawDescriptionHelpFormatter):
 
     def add_text(self, text: str | None) -> None:
         if text == _KEYS:
+            # lazy: config_help's dataclass introspection costs `sigmarl --help` a third of its start-up
+            from sigmarl.config_help import keys_epilog
+
             text = keys_epilog()
         super().add_text(text)
 

@@ -5,7 +5,7 @@ Each dataclass is one config group (conf/<group>/*.yaml picks values for it),
 so a typo in an override fails with Hydra's error naming the key.
 
 A config is an OmegaConf `DictConfig` only while it is composed (`sigmarl.compose`) or
-handed over by Hydra (a sweep job, `sigmarl.sweep.run_job`); there it becomes a `Config`
+handed over by Hydra (a sweep job, `sigmarl.sweep.job.run_job`); there it becomes a `Config`
 (`as_config`), and a config read back from a file (a checkpoint's, a run folder's
 config.yaml) becomes one through `config_from_dict`. Its plain-dict form (`as_dict`: the
 same keys, order and values as `OmegaConf.to_container`) is what config.yaml, checkpoints,

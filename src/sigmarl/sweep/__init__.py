@@ -20,9 +20,9 @@ On the command line, besides any override of the training config:
   and study variant, labelled `<variant>_<key>-<value>`.
 """
 
-from sigmarl.sweep.job import run_job
 from sigmarl.sweep.launch import finished, launch, run_sweep, summarise
 from sigmarl.sweep.plan import Job, SweepPlan, job_overrides, plan_sweep
 
-__all__ = ["Job", "SweepPlan", "finished", "job_overrides", "launch", "plan_sweep", "run_job", "run_sweep",
-           "summarise"]
+# `sigmarl.sweep.job.run_job`, what each job runs, imports torch: it is not imported here, so
+# that planning, and a sweep whose jobs are all finished, answer without it.
+__all__ = ["Job", "SweepPlan", "finished", "job_overrides", "launch", "plan_sweep", "run_sweep", "summarise"]

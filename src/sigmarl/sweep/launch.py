@@ -18,7 +18,6 @@ from sigmarl.config import register_configs
 from sigmarl.paths import CONFIG_PATH, conf_dir, user_conf_dirs
 from sigmarl.resources import sweep_folder_override, sweep_owner_override
 from sigmarl.run import Run, write_atomic
-from sigmarl.sweep.job import run_job
 from sigmarl.sweep.plan import Job, SweepPlan, plan_sweep
 from sigmarl.tracking import open_tracker
 
@@ -42,6 +41,9 @@ def launch(plan: SweepPlan) -> int:
         open_tracker(plan.config)
     overrides = multirun_overrides(plan, write_plan(plan))
     register_configs()
+    # lazy: the jobs' torch only once jobs run; a finished sweep is answered from its run folders
+    from sigmarl.sweep.job import run_job
+
     argv = sys.argv
     sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override(), *sweep_owner_override()]
     try:
