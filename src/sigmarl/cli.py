@@ -259,13 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print a shell completion script: eval \"$(sigmarl --completion bash)\" "
                         "(zsh: after `autoload bashcompinit && bashcompinit`)")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    maps = sub.add_parser("maps", help="list road maps or draw one to PNG")
-    maps.add_argument("action", choices=["list", "show"])
-    maps.add_argument("map", nargs="?", help="map name (see `sigmarl maps list`) or an .osm file")
-    maps.add_argument("--out", help="PNG file to write (default: <map>.png)")
-    maps.add_argument("--ids", action="store_true", help="label lanelet ids")
-    maps.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. map.lane_width=0.25")
-    maps.set_defaults(func=cmd_maps)
+    _add_maps(sub)
     train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow)",
                            epilog=_KEYS, formatter_class=_KeysHelp)
     train.add_argument(
@@ -285,6 +279,25 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("overrides", nargs="*", default=[],
                     help="Hydra overrides, e.g. study=quick seeds=[0,1,2] models=[M0,M4] hydra.launcher.n_jobs=3")
     sw.set_defaults(func=cmd_sweep)
+    rp = _add_report(sub)
+    for sub_parser in (train, ev, sw, rp):
+        sub_parser.add_argument("--cfg", choices=["job", "hydra", "all"],
+                                help="print the config instead of running: job (composed and resolved; a "
+                                     "sweep's every job), hydra (Hydra's settings) or all")
+    return p
+
+
+def _add_maps(sub) -> None:
+    maps = sub.add_parser("maps", help="list road maps or draw one to PNG")
+    maps.add_argument("action", choices=["list", "show"])
+    maps.add_argument("map", nargs="?", help="map name (see `sigmarl maps list`) or an .osm file")
+    maps.add_argument("--out", help="PNG file to write (default: <map>.png)")
+    maps.add_argument("--ids", action="store_true", help="label lanelet ids")
+    maps.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. map.lane_width=0.25")
+    maps.set_defaults(func=cmd_maps)
+
+
+def _add_report(sub) -> argparse.ArgumentParser:
     rp = sub.add_parser("report", help="the results table (paper's Table I layout), composite scores, figures")
     rp.add_argument("--latex", action="store_true", help="also write table.tex (booktabs)")
     rp.add_argument("--trim", action="store_true", help="drop the best and worst simulation for collision rates, as the paper did")
@@ -304,11 +317,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="with --from: print each comparison's verdict and the seeds a decision needs, nothing else")
     rp.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. study=quick or tracking.experiment=NAME")
     rp.set_defaults(func=cmd_report)
-    for sub_parser in (train, ev, sw, rp):
-        sub_parser.add_argument("--cfg", choices=["job", "hydra", "all"],
-                                help="print the config instead of running: job (composed and resolved; a "
-                                     "sweep's every job), hydra (Hydra's settings) or all")
-    return p
+    return rp
 
 
 def main(argv: Sequence[str] | None = None) -> int:

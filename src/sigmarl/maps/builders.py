@@ -167,21 +167,7 @@ def build_intersection(
             if j == k:
                 continue
             lid += 1
-            pen = _Pen(ends[k], theta[k] + math.pi)
-            delta = _wrap(theta[j] - (theta[k] + math.pi))
-            if abs(delta) < 1e-9:
-                pen.straight(float(np.linalg.norm(starts[j] - ends[k])))
-            else:
-                # Tangent length from the end of the incoming lane to where its line meets
-                # the outgoing lane's line; equal on both sides by symmetry.
-                a, _ = np.linalg.solve(np.stack([-u[k], u[j]], axis=1), starts[j] - ends[k])
-                radius = a / math.tan(abs(delta) / 2)
-                if a <= 0 or radius < 0.5 * w + _GAP:
-                    raise MapError(
-                        f"map {name}: turn from arm {k} to arm {j} does not fit "
-                        f"(radius {radius:.3f} m); increase junction_offset"
-                    )
-                pen.turn(delta, radius)
+            pen = _junction_turn(name, (k, j), ends[k], starts[j], theta, u, w)
             assert np.linalg.norm(pen.point - starts[j]) < 1e-9, "turn misses the outgoing lane"
             lanelets[lid] = pen.lanelet(lid, w)
             _connect(lanelets, k + 1, lid)
@@ -192,6 +178,28 @@ def build_intersection(
             if abs(_wrap(theta[j] - theta[k] - math.pi)) < 1e-9:  # opposite arms: two-way straight
                 _two_way(lanelets, turn_of[k, j], turn_of[j, k])
     return _finish(name, lanelets, w)
+
+
+def _junction_turn(name: str, arms: tuple[int, int], end: np.ndarray, start: np.ndarray,
+                   theta: list[float], u: list[np.ndarray], w: float) -> _Pen:
+    """The pen drawn from arm k's incoming lane's end to arm j's outgoing lane's start: a
+    straight line between opposite arms, else a circular arc tangent to both lanes."""
+    k, j = arms
+    pen = _Pen(end, theta[k] + math.pi)
+    delta = _wrap(theta[j] - (theta[k] + math.pi))
+    if abs(delta) < 1e-9:
+        return pen.straight(float(np.linalg.norm(start - end)))
+    # Tangent length from the end of the incoming lane to where its line meets
+    # the outgoing lane's line; equal on both sides by symmetry.
+    a, _ = np.linalg.solve(np.stack([-u[k], u[j]], axis=1), start - end)
+    radius = a / math.tan(abs(delta) / 2)
+    if a <= 0 or radius < 0.5 * w + _GAP:
+        raise MapError(
+            f"map {name}: turn from arm {k} to arm {j} does not fit "
+            f"(radius {radius:.3f} m); increase junction_offset"
+        )
+    pen.turn(delta, radius)
+    return pen
 
 
 def build_on_ramp(
