@@ -311,19 +311,28 @@ def build_roundabout(
         _two_way(lanelets, k + 1, n + k + 1)
         _connect(lanelets, k + 1, 2 * n + k + 1)
         _connect(lanelets, 3 * n + k + 1, n + k + 1)
-    # Ring: for each arm, exit point -> entry point -> next arm's exit point.
-    ring_ids = []
-    for k in range(n):
-        for a, sweep in ((theta[k] - beta, 2 * beta), (theta[k] + beta, ring_gap)):
-            lid = 4 * n + len(ring_ids) + 1
-            lanelets[lid] = _Pen(ring_point(a), a + math.pi / 2).turn(sweep, big_r).lanelet(lid, w)
-            ring_ids.append(lid)
-    for i, lid in enumerate(ring_ids):
-        _connect(lanelets, lid, ring_ids[(i + 1) % len(ring_ids)])
+    ring_ids = _ring(lanelets, theta, (beta, ring_gap), big_r, w)
     for k in range(n):
         _connect(lanelets, 2 * n + k + 1, ring_ids[2 * k + 1])  # entry joins where the ring's 2nd piece starts
         _connect(lanelets, ring_ids[2 * k - 1], 3 * n + k + 1)  # exit leaves where the 1st piece starts
     return _finish(name, lanelets, w)
+
+
+def _ring(lanelets: dict[int, Lanelet], theta: list[float], gaps: tuple[float, float], big_r: float,
+          w: float) -> list[int]:
+    """The ring's lanelets, ids from 4n+1: for each arm, exit point -> entry point (2 beta) ->
+    the next arm's exit point (the ring gap), each joined to the next."""
+    beta, ring_gap = gaps
+    n = len(theta)
+    ring_ids = []
+    for k in range(n):
+        for a, sweep in ((theta[k] - beta, 2 * beta), (theta[k] + beta, ring_gap)):
+            lid = 4 * n + len(ring_ids) + 1
+            lanelets[lid] = _Pen(big_r * _unit(a), a + math.pi / 2).turn(sweep, big_r).lanelet(lid, w)
+            ring_ids.append(lid)
+    for i, lid in enumerate(ring_ids):
+        _connect(lanelets, lid, ring_ids[(i + 1) % len(ring_ids)])
+    return ring_ids
 
 
 def build(cfg: MapConfig) -> RoadMap:
