@@ -22,6 +22,7 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
+from sigmarl.readers import read_json
 from sigmarl.report.folder import RunFolder, rows_of
 from sigmarl.report.sequential import key, next_round
 from sigmarl.report.verdicts import design_of
@@ -85,10 +86,14 @@ def run_auto(user: Sequence[str]) -> int:
 def _load(path: Path, identity: dict) -> dict | None:
     if not path.is_file():
         return None
-    try:
-        record = json.loads(path.read_text())
-    except (OSError, ValueError) as e:
-        raise SigmarlError(f"{path} is unreadable ({e}); move it away to start seeds=auto afresh") from e
+    fix = "move it away to start seeds=auto afresh"
+    record = read_json(path, "the seeds=auto record", fix,
+                       {"seeds": dict, "previous": dict, "looks": list, "done": bool})
+    for label, seeds in record["seeds"].items():
+        if not isinstance(seeds, list) or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+            raise SigmarlError(f"{path}: the seeds of {label!r} must be a list of whole numbers; {fix}")
+    if not all(isinstance(look, dict) and isinstance(look.get("verdicts"), dict) for look in record["looks"]):
+        raise SigmarlError(f"{path}: each look must be a JSON object with its verdicts; {fix}")
     if {k: record.get(k) for k in identity} != json.loads(json.dumps(identity)):
         raise SigmarlError(f"{path} records seeds=auto under another design (study, variants, metrics, "
                            "margins, seeds or cap); move it away, or sweep with the same settings")

@@ -12,6 +12,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
 
+import yaml
 from hydra import compose, initialize_config_dir
 from hydra.core.global_hydra import GlobalHydra
 from hydra.errors import HydraException
@@ -22,6 +23,7 @@ from sigmarl.config import Config, MapConfig, as_config, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import fingerprint
 from sigmarl.paths import conf_dir, config_files, user_conf_dirs
+from sigmarl.readers import check_config_dir, read_yaml
 from sigmarl.scenarios import scenario
 from sigmarl.suggest import hydra_error_message, unknown_keys_message
 from sigmarl.validate import check
@@ -83,6 +85,10 @@ def _bad_override() -> Iterator[None]:
         yield
     except (HydraException, OmegaConfBaseException) as e:
         raise SigmarlError(f"bad config override: {hydra_error_message(e)}") from e
+    except yaml.YAMLError as e:  # a broken file in a folder of $SIGMARL_CONFIG_PATH
+        for folder in user_conf_dirs():
+            check_config_dir(folder)  # names the file and line
+        raise SigmarlError(f"a config file is not valid YAML: {str(e).splitlines()[0]}") from e
     except ValueError as e:  # e.g. an integer too long for Python to parse (over 4300 digits)
         raise SigmarlError(f"bad config override: {str(e).splitlines()[0]}") from e
 
@@ -117,7 +123,9 @@ def map_config(name: str) -> MapConfig:
     files = config_files("map")
     if name not in files:
         raise SigmarlError(f"no map config {name!r} (conf/map/{name}.yaml); known maps: {', '.join(sorted(files))}")
-    values = OmegaConf.load(files[name])
+    values = read_yaml(files[name], "a map config")
+    if not isinstance(values, dict):
+        raise SigmarlError(f"{files[name]}: a map config holds keys and values; correct the file")
     values.pop("defaults", None)
     try:
         return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(MapConfig), values))

@@ -39,6 +39,9 @@ def add_user_conf_dir(folder: str | Path) -> None:
     path = Path(folder).expanduser().resolve()
     if not path.is_dir():
         raise SigmarlError(f"--config-dir {folder}: no such folder")
+    from sigmarl.readers import check_config_dir
+
+    check_config_dir(path)  # a broken file is one line here, not a traceback from Hydra
     dirs = [str(p) for p in user_conf_dirs() if p != path]
     os.environ[CONFIG_PATH] = os.pathsep.join([*dirs, str(path)])
 

@@ -44,14 +44,9 @@ def scenario(name: str) -> Scenario:
 
 @cache
 def _read(name: str, path: Path) -> Scenario:
-    # lazy: the CLI imports this at start-up; omegaconf only to read a scenario
-    from omegaconf import OmegaConf
-    from omegaconf.errors import OmegaConfBaseException
+    from sigmarl.readers import read_yaml
 
-    try:
-        values = OmegaConf.to_container(OmegaConf.load(path))
-    except (OSError, OmegaConfBaseException) as e:
-        raise SigmarlError(f"{path}: not a readable scenario file ({str(e).splitlines()[0]})") from e
+    values = read_yaml(path, "a scenario file")
     if not isinstance(values, dict) or set(values) - {"map", "n_agents", "paper"} or "map" not in values \
             or "n_agents" not in values:
         raise SigmarlError(f"{path}: a scenario file holds `map`, `n_agents` and optionally `paper`")

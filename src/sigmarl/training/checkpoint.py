@@ -80,6 +80,10 @@ def load(path: Path, device: str | torch.device = "cpu", resume: bool = False) -
         if key in needed and (bad := _not_finite(state[key])):
             # a diverged training's weights: the rollout would fail deep inside the simulator
             raise SigmarlError(f"checkpoint {path}: {key} tensor {bad} holds NaN or infinite values")
+    if resume and (bad := _optimiser_not_finite(state["optimizer"])):
+        # resuming would take NaN steps: the next best.pt would hold NaN weights
+        raise SigmarlError(f"checkpoint {path}: the optimiser state {bad}; it cannot be resumed: move "
+                           "the run folder away and train again (its best.pt and final.pt stay usable)")
     if not isinstance(state["config"], dict) or not isinstance(state["iteration"], int):
         raise SigmarlError(f"checkpoint {path}: 'config' or 'iteration' is malformed")
     return state
@@ -97,6 +101,24 @@ def _tensor_dict(d: Any) -> bool:
 def _not_finite(weights: Mapping[str, torch.Tensor]) -> str | None:
     """The name of the first floating-point tensor with a NaN or an infinity, if any."""
     return next((k for k, t in weights.items() if t.is_floating_point() and not torch.isfinite(t).all()), None)
+
+
+def _optimiser_not_finite(optimiser: Any) -> str | None:
+    """What in an optimiser's state_dict is malformed or not finite (a NaN moment, a NaN lr), if any."""
+    if not isinstance(optimiser, Mapping) or not isinstance(optimiser.get("state"), Mapping) \
+            or not isinstance(optimiser.get("param_groups"), list):
+        return "is malformed (not an optimiser's state_dict)"
+    for index, slots in optimiser["state"].items():
+        if not isinstance(slots, Mapping):
+            return f"of parameter {index} is malformed"
+        for name, value in slots.items():
+            if isinstance(value, torch.Tensor) and value.is_floating_point() and not torch.isfinite(value).all():
+                return f"of parameter {index} holds NaN or infinite values in {name!r}"
+    for group in optimiser["param_groups"]:
+        for name, value in (group.items() if isinstance(group, Mapping) else []):
+            if isinstance(value, float) and not np.isfinite(value):
+                return f"sets {name} to {value}"
+    return None
 
 
 def _check_dims(dims: Any, path: Path) -> None:
