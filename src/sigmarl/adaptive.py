@@ -102,9 +102,11 @@ def _load(path: Path, identity: dict) -> dict | None:
 
 def _rows(plan) -> pd.DataFrame:
     """The evaluation rows of the plan's run folders, checked as `report --from` checks them."""
-    frames = [rows_of(RunFolder(j.label, j.seed, Path(j.run_dir))) for j in plan.jobs
-              if Run(j.run_dir).rows_file.is_file()]
-    return pd.concat(frames, ignore_index=True)
+    missing = [j.key for j in plan.jobs if not Run(j.run_dir).rows_file.is_file()]
+    if missing:  # a look without a seed's rows would decide on fewer seeds than recorded
+        raise SigmarlError(f"seeds=auto: {', '.join(missing[:3])} finished without its evaluation rows; "
+                           "run the same command again (the sweep evaluates it again)")
+    return pd.concat([rows_of(RunFolder(j.label, j.seed, Path(j.run_dir))) for j in plan.jobs], ignore_index=True)
 
 
 def _summary(record: dict) -> str:

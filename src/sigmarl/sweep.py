@@ -116,7 +116,7 @@ def run_job(cfg: DictConfig | Config) -> str:
 
 
 def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
-    from sigmarl.evaluation.protocol import evaluate_and_log
+    from sigmarl.evaluation.protocol import evaluate_and_log, evaluate_rows, has_rows
     from sigmarl.tracking import open_tracker, records
     from sigmarl.training.loop import train
 
@@ -132,6 +132,10 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
         if not result.finished:
             return "interrupted"
         if result.run_id and (done := tracker.finished_evaluation(result.run_id, records.eval_key(cfg.eval))):
+            if not has_rows(run.rows_file, cfg):  # the folder is the record: its rows come back
+                emit(f"{run_dir}: already evaluated, but {run.rows_file.name} is missing: evaluating again "
+                     "into the run folder", logging.WARNING)
+                evaluate_rows(run.checkpoint(cfg.eval.checkpoint), cfg, run.rows_file)
             emit(f"{run_dir}: already evaluated")
             run.mark_done(done)
             return "done"
@@ -450,7 +454,7 @@ def launch(plan: SweepPlan) -> int:
 
 def finished(job: Job) -> bool:
     """Whether the job's run folder holds this very job, done: `evaluated.txt`, no `failed.txt`,
-    a config.yaml of the same fingerprint (checked when the plan was made) and rows measured
+    a config.yaml of the same fingerprint (checked when the plan was made) and its rows, measured
     under the job's evaluation protocol."""
     run = Run(job.run_dir)
     if not run.done_file.is_file() or run.failed_file.exists():
@@ -459,7 +463,8 @@ def finished(job: Job) -> bool:
         evaluated = json.loads(run.rows_meta_file.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
-    return run.config_file.is_file() and evaluated.get("eval_key") == job.eval_key
+    return run.config_file.is_file() and run.rows_file.is_file() and isinstance(evaluated, dict) \
+        and evaluated.get("eval_key") == job.eval_key
 
 
 def job_overrides(user_overrides: Sequence[str]) -> tuple[list[str], list[list[str]]]:

@@ -118,6 +118,30 @@ def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) ->
     write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
 
 
+def evaluate_rows(path: Path, cfg: Config, rows_file: Path | None, scenarios=None,
+                  progress: bool = True) -> tuple[pd.DataFrame, dict]:
+    """The checkpoint's evaluation rows and the checkpoint: those saved in `rows_file` under the
+    same protocol and checkpoint, or evaluated now (and saved there)."""
+    from sigmarl.training import checkpoint as ckpt
+
+    identity = _identity(path, cfg) if rows_file is not None else {}
+    rows = _saved_rows(rows_file, identity) if rows_file is not None else None
+    if rows is not None:
+        return rows, ckpt.load(path, cfg.device)
+    if rows_file is not None:
+        ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use --out <file>")
+    rows, state = evaluate_checkpoint(path, cfg.eval, scenarios, device=cfg.device, progress=progress)
+    if rows_file is not None:
+        _save_rows(rows, rows_file, identity)
+    return rows, state
+
+
+def has_rows(rows_file: Path, cfg: Config) -> bool:
+    """Whether `rows_file` holds rows measured under `cfg`'s evaluation protocol."""
+    meta = _read_meta(rows_file)
+    return rows_file.is_file() and meta is not None and meta.get("eval_key") == records.eval_key(cfg.eval)
+
+
 def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenarios=None,
                      progress: bool = True, rows_file: Path | None = None,
                      tracker: Tracker | None = None) -> tuple[pd.DataFrame, str | None]:
@@ -129,16 +153,7 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
     checkpoint are logged without evaluating again.
     """
     tracker = tracker or open_tracker(cfg)  # the store is checked before evaluating
-    identity = _identity(path, cfg) if rows_file is not None else {}
-    rows = _saved_rows(rows_file, identity) if rows_file is not None else None
-    if rows is not None:
-        state = ckpt.load(path, cfg.device)
-    else:
-        if rows_file is not None:
-            ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use --out <file>")
-        rows, state = evaluate_checkpoint(path, cfg.eval, scenarios, device=cfg.device, progress=progress)
-        if rows_file is not None:
-            _save_rows(rows, rows_file, identity)
+    rows, state = evaluate_rows(path, cfg, rows_file, scenarios, progress)
     crash.point("eval:rows")
     train_cfg = ckpt.config_of(state, path)
     tags = {

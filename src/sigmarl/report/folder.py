@@ -110,7 +110,27 @@ def check_rows(rows: pd.DataFrame, path: Path) -> pd.DataFrame:
     bad("CR_total is not CR_AA + CR_AL", (metrics["CR_total"] - parts).abs() > 1e-6 + 1e-5 * parts)
     bad("CD (cm from the center line) is negative", metrics["CD"] < 0)
     bad(f"AS (m/s) is not in [0, {VEHICLE.max_speed}]", (metrics["AS"] < 0) | (metrics["AS"] > AS_MAX))
+    if "simulation" in metrics:
+        bad("a simulation is given twice for its scenario", pd.Series(
+            pd.DataFrame({"s": scenario, "n": metrics["simulation"]}).duplicated().to_numpy(), index=rows.index))
+        _check_simulations(scenario, metrics["simulation"], path)
     return rows
+
+
+def _check_simulations(scenario: pd.Series, simulation: pd.Series, path: Path) -> None:
+    """Every scenario holds simulations 0..n-1, the same n for each (the protocol's eval.n_sims):
+    a row dropped from a file otherwise moves a scenario's mean without a word."""
+    counts = {}
+    for name, sims in simulation.groupby(scenario, sort=False):
+        n = len(sims)
+        if sorted(sims.astype(int)) != list(range(n)):
+            lost = sorted(set(range(int(sims.max()) + 1)) - set(sims.astype(int)))
+            raise SigmarlError(f"{path}: scenario {name} lacks simulation(s) {lost[:5]}; restore the file, "
+                               "or evaluate the run again (delete evaluation_rows.csv and sweep again)")
+        counts[name] = n
+    if len(set(counts.values())) > 1:
+        raise SigmarlError(f"{path}: the scenarios hold different numbers of simulations ({counts}); restore the "
+                           "file, or evaluate the run again (delete evaluation_rows.csv and sweep again)")
 
 
 def rows_of(run: RunFolder) -> pd.DataFrame:
@@ -168,6 +188,7 @@ def read_results(root: Path) -> FolderResults:
     runs = run_folders(root)
     frames, curves, notes = [], [], []
     seen: dict[tuple[str, int], Path] = {}
+    sims: dict[str | None, tuple[int, Path]] = {}  # per evaluation protocol: simulations per scenario
     for run in runs:
         if not Run(run.path).rows_file.is_file():
             notes.append(f"{run.path} has no {ROWS_FILE} (not evaluated yet): left out")
@@ -178,6 +199,7 @@ def read_results(root: Path) -> FolderResults:
                          f"{RULES_REVISION}: left out; `sigmarl sweep runs_root=...` re-evaluates it")
             continue
         rows = rows_of(run)
+        _same_protocol_count(rows, run, sims)
         model = str(rows["model"].iloc[0])
         key = (model, run.seed)
         if key in seen:
@@ -195,6 +217,26 @@ def read_results(root: Path) -> FolderResults:
     curve_frame = (pd.concat(curves, ignore_index=True) if curves
                    else pd.DataFrame(columns=["model", "seed", "iteration", "reward", "seconds"]))
     return FolderResults(rows, curve_frame, runs, notes)
+
+
+def _same_protocol_count(rows: pd.DataFrame, run: RunFolder, sims: dict) -> None:
+    """Runs evaluated under one protocol hold the same number of simulations per scenario."""
+    if "simulation" not in rows.columns or not len(rows):
+        return
+    key, n = _eval_key_of(run), int(rows.groupby("scenario").size().iloc[0])
+    first = sims.setdefault(key, (n, run.path))
+    if first[0] != n:
+        raise SigmarlError(f"{run.path} holds {n} simulations per scenario, {first[1]} {first[0]} under the same "
+                           "evaluation protocol: rows were dropped or added; evaluate the run again "
+                           "(delete its evaluation_rows.csv and sweep again)")
+
+
+def _eval_key_of(run: RunFolder) -> str | None:
+    try:
+        meta = json.loads(Run(run.path).rows_meta_file.read_text())
+    except (OSError, ValueError):
+        return None
+    return str(meta.get("eval_key")) if isinstance(meta, dict) else None
 
 
 def read_many(roots: list[Path]) -> FolderResults:

@@ -1,0 +1,99 @@
+"""Results and run folders found wrong by the third reliability round: a report refuses rows
+that were duplicated or dropped, and a run counts as finished only with its rows."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from sigmarl.cli import main
+from sigmarl.run import Run
+from sigmarl.sweep import Job, finished
+
+PAPER = Path(__file__).resolve().parents[1] / "results" / "paper-budget"
+
+
+def one_line_exit_2(args: list[str], capsys) -> str:
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("sigmarl: error: "), err
+    return lines[0]
+
+
+def _copy_results(tmp_path: Path, seeds=range(3)) -> Path:
+    """The paper-budget rows and metrics of M0 and M4 (no checkpoints)."""
+    root = tmp_path / "results"
+    for model in ("M0", "M4"):
+        for seed in seeds:
+            src, dst = PAPER / model / f"seed{seed}", root / model / f"seed{seed}"
+            dst.mkdir(parents=True)
+            for name in ("evaluation_rows.csv", "evaluation.json", "config.yaml"):
+                shutil.copy(src / name, dst / name)
+    return root
+
+
+def _edit_rows(root: Path, edit) -> Path:
+    path = root / "M0" / "seed1" / "evaluation_rows.csv"
+    rows = pd.read_csv(path)
+    edit(rows).to_csv(path, index=False)
+    return path
+
+
+def _renumber(rows: pd.DataFrame) -> pd.DataFrame:
+    rows.loc[1, "simulation"] = 0  # CPM's simulation 1 numbered 0
+    return rows
+
+
+@pytest.mark.parametrize("edit, says", [
+    (lambda r: pd.concat([r, r.iloc[[5]]]), "twice"),  # a row duplicated
+    (lambda r: r.drop(index=[0, 1]), "lacks simulation"),  # CPM's first two simulations dropped
+    (_renumber, "twice"),  # a simulation number given twice
+    (lambda r: r[~((r.scenario == "CPM") & (r.simulation == 31))], "different numbers"),  # CPM's last one
+])
+def test_f8_a_seed_plan_refuses_duplicated_or_dropped_simulation_rows(edit, says, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    root = _copy_results(tmp_path)
+    path = _edit_rows(root, edit)
+    line = one_line_exit_2(["report", "--from", str(root), "--plan"], capsys)
+    assert str(path) in line and says in line
+
+
+def test_f8_a_report_refuses_a_duplicated_row(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    root = _copy_results(tmp_path)
+    path = _edit_rows(root, lambda r: pd.concat([r, r.iloc[[5]]]))
+    line = one_line_exit_2(["report", "--from", str(root), "--no-figures", "tracking.enabled=false",
+                            f"--out={tmp_path}/rep"], capsys)
+    assert str(path) in line and "twice" in line
+    assert not (tmp_path / "rep").exists()
+
+
+def test_f8_uniformly_dropped_simulations_differ_from_the_protocols_count(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    root = _copy_results(tmp_path)
+    path = _edit_rows(root, lambda r: r[r.simulation < 30])
+    line = one_line_exit_2(["report", "--from", str(root), "--plan"], capsys)
+    assert str(path.parent) in line and "30 simulations per scenario" in line
+
+
+def test_f8_the_untouched_rows_report(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["report", "--from", str(_copy_results(tmp_path)), "--plan"]) == 0
+
+
+def test_f10_a_run_without_its_rows_is_not_finished(tmp_path):
+    run = Run(tmp_path / "M4" / "seed0")
+    run.dir.mkdir(parents=True)
+    for name in ("config.yaml", "evaluation.json", "evaluation_rows.csv", "evaluated.txt"):
+        shutil.copy(PAPER / "M4" / "seed0" / name, run.path(name))
+    key = json.loads(run.rows_meta_file.read_text())["eval_key"]
+    job = Job("M4/seed0", "M4", 0, [], [], str(run.dir), "f", key)
+    assert finished(job)
+    run.rows_file.unlink()
+    assert not finished(job)  # the sweep runs it again, and the job restores the rows
+    assert not finished(Job("M4/seed0", "M4", 0, [], [], str(run.dir), "f", "another-protocol"))
