@@ -159,8 +159,11 @@ def tracker_class(backend: str) -> type[Tracker]:
                            f"got {backend!r}")
     try:
         cls = getattr(importlib.import_module(module_name), class_name)
-    except (ImportError, AttributeError) as e:
-        raise SigmarlError(f"tracking.backend {backend!r}: cannot import {target} ({e})") from e
+    except Exception as e:  # not found, a syntax error, or whatever its import raised
+        from sigmarl.tracking.guard import first_line
+
+        raise SigmarlError(f"tracking.backend {backend!r}: cannot import {target} ({first_line(e)}); fix it, "
+                           "or set tracking.enabled=false to run without it") from e
     if not (isinstance(cls, type) and issubclass(cls, Tracker)):
         raise SigmarlError(f"tracking.backend {backend!r}: {target} is not a sigmarl.tracking.Tracker")
     return cls
@@ -170,4 +173,10 @@ def open_tracker(cfg: Config) -> Tracker:
     """The tracker the command records to: the one place the tracking switch is decided."""
     if not cfg.tracking.enabled:
         return NullTracker(cfg)
-    return tracker_class(cfg.tracking.backend)(cfg)
+    backend = cfg.tracking.backend
+    cls = tracker_class(backend)
+    if backend in BACKENDS:  # sigmarl's own: it warns and fails in one line by itself
+        return cls(cfg)
+    from sigmarl.tracking.guard import GuardedTracker, at_start
+
+    return GuardedTracker(at_start(backend, "its constructor", lambda: cls(cfg)), backend)
