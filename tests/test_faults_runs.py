@@ -97,3 +97,27 @@ def test_f10_a_run_without_its_rows_is_not_finished(tmp_path):
     run.rows_file.unlink()
     assert not finished(job)  # the sweep runs it again, and the job restores the rows
     assert not finished(Job("M4/seed0", "M4", 0, [], [], str(run.dir), "f", "another-protocol"))
+
+
+def test_f18_evaluate_is_refused_on_a_run_folder_that_is_being_trained(tmp_path, capsys, monkeypatch):
+    import subprocess
+    import sys
+
+    monkeypatch.chdir(tmp_path)
+    run = Run(tmp_path / "runs" / "M0" / "seed0")
+    run.dir.mkdir(parents=True)
+    for name in ("config.yaml", "best.pt"):
+        shutil.copy(PAPER / "M0" / "seed0" / name, run.path(name))
+    holder = subprocess.Popen(  # what `sigmarl train` holds while it writes the folder
+        [sys.executable, "-c", "import fcntl, os, sys, time; fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT); "
+         "fcntl.flock(fd, fcntl.LOCK_EX); os.write(fd, b'4242 trainer'); print('held', flush=True); time.sleep(60)",
+         str(run.lock_file)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        line = one_line_exit_2(["evaluate", str(run.dir), "--scenario", "On-Ramp", "eval.n_sims=1", "eval.steps=2",
+                                "tracking.enabled=false"], capsys)
+    finally:
+        holder.kill()
+        holder.wait()
+    assert "in use by another sigmarl process (pid 4242 on trainer)" in line
+    assert not run.rows_file.exists()

@@ -89,7 +89,8 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     from sigmarl.metrics import scaled, units_text
 
     rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
-    rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
+    with _run_folder_held(path):  # not while `sigmarl train` writes it (its best.pt may change)
+        rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
     means = scaled(rows).groupby(rows["scenario"], sort=False).mean()
     print(f"{rows['model'].iloc[0]} ({path}), {cfg.eval.n_sims} simulations x {cfg.eval.steps} steps, "
           f"seed {cfg.eval.seed}: {units_text()}")
@@ -97,6 +98,23 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     print(f"wrote {rows_file}")
     if run_id:
         print(f"MLflow evaluation run {run_id} in experiment {cfg.tracking.experiment!r}")
+
+
+def _run_folder_held(checkpoint: Path):
+    """The lock of the run folder holding `checkpoint` (refused in one line while another process
+    trains it); nothing to hold for a checkpoint elsewhere or in a folder this user cannot write."""
+    import contextlib
+
+    from sigmarl.run import Run
+
+    run = Run(checkpoint.resolve().parent)
+    if not (run.config_file.exists() or run.resume_file.exists()):
+        return contextlib.nullcontext()
+    try:
+        os.close(os.open(run.lock_file, os.O_RDWR | os.O_CREAT, 0o644))
+    except OSError:  # a read-only copy of a results folder: nobody trains there
+        return contextlib.nullcontext()
+    return run.lock()
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
