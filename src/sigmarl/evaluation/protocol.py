@@ -139,7 +139,7 @@ def evaluate_rows(path: Path, cfg: Config, rows_file: Path | None, scenarios=Non
 def has_rows(rows_file: Path, cfg: Config) -> bool:
     """Whether `rows_file` holds rows measured under `cfg`'s evaluation protocol."""
     meta = _read_meta(rows_file)
-    return rows_file.is_file() and meta is not None and meta.get("eval_key") == records.eval_key(cfg.eval)
+    return rows_file.is_file() and meta is not None and meta.get("eval_key") == eval_key(cfg.eval)
 
 
 def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenarios=None,
