@@ -84,7 +84,8 @@ def finished(job: Job) -> bool:
         evaluated = json.loads(run.rows_meta_file.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
-    return run.config_file.is_file() and evaluated.get("eval_key") == job.eval_key
+    return run.config_file.is_file() and run.rows_file.is_file() and isinstance(evaluated, dict) \
+        and evaluated.get("eval_key") == job.eval_key
 
 
 def summarise(plan: SweepPlan) -> int:

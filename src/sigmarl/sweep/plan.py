@@ -14,11 +14,9 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import yaml
-
 from sigmarl.ablation import check_eval
 from sigmarl.compose import compose_config, compose_seeds
-from sigmarl.config import Config, StudyConfig, config_from_dict
+from sigmarl.config import Config, StudyConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import eval_key
 from sigmarl.identity import check_label, differences, fingerprint
@@ -174,8 +172,7 @@ def earlier_config(run_dir: Path) -> Config | None:
     path = Run(run_dir).config_file
     if not path.is_file():
         return None
-    try:
-        saved = config_from_dict(yaml.safe_load(path.read_text()) or {}, what=str(path))
-    except (OSError, yaml.YAMLError) as e:
-        raise SigmarlError(f"{path} is unreadable ({e}); move the run folder away") from e
+    from sigmarl.readers import read_run_config
+
+    saved = read_run_config(path)
     return replace(saved, fingerprint=fingerprint(saved))
