@@ -70,7 +70,7 @@ def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
     users = [f"++hydra.job.env_set.{CONFIG_PATH}='{os.pathsep.join(map(str, user_conf_dirs()))}'"] \
         if user_conf_dirs() else []
     return [*search_path_override(), *plan.fixed, *plan.hydra, "study.job=" + ",".join(j.key for j in plan.jobs),
-            f"study.plan='{plan_file}'", "hydra.sweep.subdir=${study.job}", *users]
+            f"study.plan='{plan_file}'", "hydra.job.name=sweep", "hydra.sweep.subdir=${study.job}", *users]
 
 
 def finished(job: Job) -> bool:
