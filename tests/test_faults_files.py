@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 import torch
+from cli_errors import one_line_exit_2
 
-from sigmarl.cli import main
 from sigmarl.errors import SigmarlError
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
@@ -18,12 +18,6 @@ from sigmarl.training import metrics_file
 PAPER_RUN = Path(__file__).resolve().parents[1] / "results" / "paper-budget" / "M0" / "seed0"
 
 
-def one_line_exit_2(args: list[str], capsys) -> str:
-    assert main(args) == 2
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("sigmarl: error: "), err
-    return lines[0]
 
 
 BROKEN_YAML = {

@@ -4,16 +4,7 @@ exit code 2, before any run folder or MLflow run exists."""
 from __future__ import annotations
 
 import pytest
-
-from sigmarl.cli import main
-
-
-def one_line_exit_2(args: list[str], capsys) -> str:
-    assert main(args) == 2
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("sigmarl: error: "), err
-    return lines[0]
+from cli_errors import one_line_exit_2
 
 
 @pytest.mark.parametrize("name", ["../../etc", "a/b", "..", "a\\b"])

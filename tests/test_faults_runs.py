@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from cli_errors import one_line_exit_2
 
 from sigmarl.cli import main
 from sigmarl.run import Run
@@ -17,12 +18,6 @@ from sigmarl.sweep import Job, finished
 PAPER = Path(__file__).resolve().parents[1] / "results" / "paper-budget"
 
 
-def one_line_exit_2(args: list[str], capsys) -> str:
-    assert main(args) == 2
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("sigmarl: error: "), err
-    return lines[0]
 
 
 def _copy_results(tmp_path: Path, seeds=range(3)) -> Path:

@@ -8,20 +8,14 @@ from pathlib import Path
 
 import pytest
 import torch
+from cli_errors import one_line_exit_2 as _one_line_exit_2
 
-from sigmarl.cli import main
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
 
 PAPER_BEST = Path(__file__).resolve().parents[1] / "results" / "paper-budget" / "M0" / "seed0" / "best.pt"
 
 
-def _one_line_exit_2(args: list[str], capsys) -> str:
-    assert main(args) == 2
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("sigmarl: error: "), err
-    return lines[0]
 
 
 @pytest.mark.parametrize("override, key", [
