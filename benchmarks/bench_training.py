@@ -31,7 +31,8 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 
 from sigmarl.compose import compose_config
-from sigmarl.training.loop import build, learning_rate
+from sigmarl.training.lone import LoneLearner
+from sigmarl.training.loop import learning_rate
 from sigmarl.training.mappo import collect, update
 from sigmarl.training.networks import ACTION, OBS
 from sigmarl.training.ppo_loss import LeanPPOLoss, cpu_has_native_bf16
@@ -126,7 +127,7 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
     processes on the machine hits both alike.
     """
     ppo = cfg.ppo
-    parts = build(cfg, torch.device("cpu"))
+    parts = LoneLearner(cfg, torch.device("cpu"))
     env = parts.env
     steps = ppo.frames_per_iteration // ppo.num_envs
     one = replace(cfg.ppo, epochs=1)
@@ -182,7 +183,7 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
 def measure_precision(cfg, epochs: int) -> dict[str, float]:
     """CPU seconds of `epochs` PPO epochs in fp32 and in bf16, run alternately on one thread."""
     torch.set_num_threads(1)
-    parts = build(cfg, torch.device("cpu"))
+    parts = LoneLearner(cfg, torch.device("cpu"))
     data = collect(iter(parts.collector))
     with torch.no_grad():
         parts.gae(data)

@@ -22,7 +22,7 @@ from sigmarl.compose import compose_config, map_config
 from sigmarl.env.route_bank import RouteBank
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.maps import load_map
-from sigmarl.training.loop import build
+from sigmarl.training.lone import LoneLearner
 from sigmarl.training.mappo import collect, update
 
 SRC = str(Path(sigmarl.__file__).resolve().parent)
@@ -69,7 +69,7 @@ def parts():
     cfg = compose_config(["tracking.enabled=false", "ppo=smoke", "ppo.num_envs=4",
                           "ppo.frames_per_iteration=256", "ppo.minibatch_size=64",
                           "network.hidden=[16,16]"])
-    built = build(cfg, torch.device(cfg.device))
+    built = LoneLearner(cfg, torch.device(cfg.device))
     yield cfg, built
     built.close()
 

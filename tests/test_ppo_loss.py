@@ -12,7 +12,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
-from sigmarl.training.loop import build
+from sigmarl.training.lone import LoneLearner
 from sigmarl.training.mappo import collect
 from sigmarl.training.networks import ACTION, LOG_PROB, OBS, PREIMAGE, make_sampler
 from sigmarl.training.ppo_loss import TERMS, LeanPPOLoss, TorchrlPPOLoss
@@ -28,7 +28,7 @@ def setup(request):
         f"network.shared_critic_value={shared}", f"network.centralised_critic={centralised}",
     ])
     torch.manual_seed(0)
-    parts = build(cfg, torch.device("cpu"))
+    parts = LoneLearner(cfg, torch.device("cpu"))
     data = collect(iter(parts.collector))
     with torch.no_grad():
         parts.gae(data)
@@ -73,7 +73,7 @@ def test_lean_loss_scores_the_collected_actions_like_the_sampler(setup) -> None:
     """Before any update the ratio is 1: from the stored pre-tanh sample for every action,
     and from the inverted tanh (rollouts without it) for actions away from saturation."""
     cfg, parts, _ = setup
-    fresh = build(cfg, torch.device("cpu"))
+    fresh = LoneLearner(cfg, torch.device("cpu"))
     try:
         data = collect(iter(fresh.collector))
         with torch.no_grad():

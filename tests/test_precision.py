@@ -9,7 +9,7 @@ import torch
 
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
-from sigmarl.training.loop import build
+from sigmarl.training.lone import LoneLearner
 from sigmarl.training.mappo import collect
 from sigmarl.training.ppo_loss import (
     TERMS,
@@ -31,7 +31,7 @@ def setup():
     cfg = compose_config(["tracking.enabled=false", "ppo=smoke", "ppo.num_envs=4",
                           "ppo.frames_per_iteration=128", "ppo.entropy_coef=0.01"])
     torch.manual_seed(0)
-    parts = build(cfg, torch.device("cpu"))
+    parts = LoneLearner(cfg, torch.device("cpu"))
     data = collect(iter(parts.collector))
     with torch.no_grad():
         parts.gae(data)

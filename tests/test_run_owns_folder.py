@@ -12,8 +12,7 @@ from sigmarl.errors import Terminated, end_status, exit_code, interruption, rais
 
 SRC = Path(run_mod.__file__).parent
 NAMES = {k: v for k, v in vars(run_mod).items() if k.endswith(("_FILE", "_META")) and isinstance(v, str)}
-# Training's own module is moved onto Run by its owner in the seed-block change.
-EXEMPT = {"run.py", "training/loop.py"}
+EXEMPT = {"run.py"}
 JOIN = re.compile(r"/\s*(?:\w+\.)?(" + "|".join(NAMES) + r")\b|/\s*[\"'](" +
                   "|".join(re.escape(v) for v in NAMES.values()) + r"|seeds_auto\.json)[\"']")
 

@@ -62,17 +62,17 @@ def cmd_maps(args: argparse.Namespace) -> None:
 
 def cmd_train(args: argparse.Namespace) -> None:
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
-    from sigmarl.compose import compose_config
+    from sigmarl.compose import compose_block
 
-    cfg = compose_config(args.overrides)  # a bad override is answered before torch is imported
-    use_threads(cfg.threads)
-    from sigmarl.training import train
+    cfgs = compose_block(args.overrides)  # a bad override is answered before torch is imported
+    use_threads(cfgs[0].threads)
+    from sigmarl.training import train_block
 
-    result = train(cfg)
-    best = "n/a" if result.best_reward is None else f"{result.best_reward:.2f}"
-    state = "finished" if result.finished else "stopped (resume with resume=true)"
-    print(f"{state} after {result.iterations} iterations; best mean episode reward {best}; "
-          f"checkpoints in {result.run_dir}" + (f"; MLflow run {result.run_id}" if result.run_id else ""))
+    for result in train_block(cfgs):
+        best = "n/a" if result.best_reward is None else f"{result.best_reward:.2f}"
+        state = "finished" if result.finished else "stopped (resume with resume=true)"
+        print(f"{state} after {result.iterations} iterations; best mean episode reward {best}; "
+              f"checkpoints in {result.run_dir}" + (f"; MLflow run {result.run_id}" if result.run_id else ""))
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
@@ -278,7 +278,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(zsh: after `autoload bashcompinit && bashcompinit`)")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_maps(sub)
-    train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow)",
+    train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow); seeds=[0,1,2,3] "
+                           "trains those seeds as one seed block, one batched computation in one process",
                            epilog=_KEYS, formatter_class=_KeysHelp)
     train.add_argument(
         "overrides", nargs="*", default=[],

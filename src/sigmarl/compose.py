@@ -136,3 +136,41 @@ def map_config(name: str) -> MapConfig:
 def scenario_map_config(name: str) -> MapConfig:
     """The map config of an evaluation scenario (conf/scenario/<name>.yaml names it)."""
     return map_config(scenario(name).map)
+
+
+def compose_block(overrides: Sequence[str] = ()) -> list[Config]:
+    """`sigmarl train`'s configs: one, or with `seeds=[a,b,...]` (or `seeds=range(a,b)`) one per
+    seed of a seed block, each composed as `seed=<k>` would compose it alone (its own run folder,
+    config.yaml and record)."""
+    seeds, rest = None, []
+    for override in overrides:
+        if override.split("=", 1)[0].strip() == "seeds":
+            seeds = block_seeds(override)
+        else:
+            rest.append(override)
+    if seeds is None:
+        return [compose_config(rest)]
+    if any(o.split("=", 1)[0].strip().lstrip("+~") == "seed" for o in rest):
+        raise SigmarlError("give either seeds=[...] (a seed block) or seed=..., not both")
+    cfgs = compose_seeds(rest, seeds)
+    if len({c.run_dir for c in cfgs}) < len(cfgs):
+        raise SigmarlError(f"the seeds of a block need a run folder each, but run_dir={cfgs[0].run_dir} names one "
+                           "for all: set runs_root=... instead (seed k trains in <runs_root>/<label>/seed<k>)")
+    return cfgs
+
+
+def block_seeds(override: str) -> list[int]:
+    """The seeds of `seeds=[0,1,2]` or `seeds=range(0,3)`: distinct non-negative integers."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        parsed = OverridesParser.create().parse_override(override)
+        values = list(parsed.sweep_iterator()) if parsed.is_sweep_override() else parsed.value()
+    except HydraException as e:
+        raise SigmarlError(f"bad seeds=...: {hydra_error_message(e)}") from e
+    values = values if isinstance(values, list) else [values]
+    if not values or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in values):
+        raise SigmarlError(f"seeds=... must list non-negative integers, e.g. seeds=[0,1,2,3]; got {override.split('=', 1)[1]!r}")
+    if len(set(values)) < len(values):
+        raise SigmarlError(f"seeds=... lists a seed twice: {values}")
+    return [int(v) for v in values]

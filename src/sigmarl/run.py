@@ -34,6 +34,8 @@ ROWS_FILE = "evaluation_rows.csv"  # one row per (scenario, simulation)
 ROWS_META = "evaluation.json"  # what measured the rows (protocol key, checkpoint hash, rules)
 DONE_FILE = "evaluated.txt"  # the sweep's mark: trained and evaluated (the evaluation run id)
 FAILED_FILE = "failed.txt"  # the sweep's mark: the job failed (the error)
+BLOCK_FILE = "block.json"  # a seed block's seed: the block it trains in (its seeds)
+NEXT_RESUME_FILE = "checkpoint.next.pt"  # a block's resume point while its seeds' are committed together
 
 # The metric whose history tells which iterations a training run holds (metrics.csv, MLflow).
 REWARD_COLUMN = "episode_reward_mean"
@@ -114,6 +116,8 @@ class Run:
     rows_meta_file = property(lambda self: self.path(ROWS_META))
     done_file = property(lambda self: self.path(DONE_FILE))
     failed_file = property(lambda self: self.path(FAILED_FILE))
+    block_file = property(lambda self: self.path(BLOCK_FILE))
+    next_resume_file = property(lambda self: self.path(NEXT_RESUME_FILE))
 
     def checkpoint(self, which: str) -> Path:
         """The policy a run is evaluated with: eval.checkpoint `best` or `final`."""

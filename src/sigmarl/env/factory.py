@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import torch
@@ -53,6 +55,11 @@ class TrafficEnv(VmasEnv):
     def _set_seed(self, seed: int | None) -> None:
         super()._set_seed(seed)
         self._env.scenario.seed(0 if seed is None else seed)
+
+    def seed_block(self, seeds: Sequence[int]) -> None:
+        """Reseed a seed block's scenario, one seed per seed (torch's global generator, which
+        `set_seed` also seeds, draws nothing in a block)."""
+        self._env.scenario.seed(list(seeds))
 
     def _output(self, with_reward: bool) -> TensorDict:
         sc = self._env.scenario
@@ -125,9 +132,11 @@ def make_env(
     road_map: RoadMap | None = None,
     seed: int | None = None,
     device: str | None = None,
+    seeds: Sequence[int] = (),
 ) -> EnvBase:
     """A VmasEnv over TrafficScenario; keyword arguments override the config's values
-    (`map_cfg` its map, `road_map` an already loaded one).
+    (`map_cfg` its map, `road_map` an already loaded one). `seeds`: a seed block, its
+    `num_envs` environments split evenly between them in order (`sigmarl.env.streams`).
 
     A time-out is reported as `truncated` (bootstrapped by GAE), never as `terminated`
     (unless `rules.timeout_terminal`, the paper's way).
@@ -149,7 +158,7 @@ def make_env(
         continuous_actions=True,
         max_steps=max_steps,
         seed=seed,
-        settings=_settings(cfg, road_map, n_agents, mode, seed),
+        settings=replace(_settings(cfg, road_map, n_agents, mode, seed), seeds=tuple(int(s) for s in seeds)),
     )
 
 

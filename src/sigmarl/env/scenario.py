@@ -10,6 +10,7 @@ kinematic single-track model runs on our own state tensors.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING
 
@@ -32,6 +33,7 @@ from sigmarl.env.params import DT, VEHICLE
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
 from sigmarl.env.route_bank import CENTER, HALF_DIAGONAL, RouteBank
 from sigmarl.env.spawn import sample_spawns, spawn_index_range
+from sigmarl.env.streams import SeedStreams
 from sigmarl.maps.model import RoadMap
 
 if TYPE_CHECKING:
@@ -63,6 +65,9 @@ class ScenarioSettings:
     spawn_margin_m: float
     seed: int  # the spawn and noise generators' seed
     rules: RulesConfig  # the paper's rules switched on (none: ours)
+    # a seed block's seeds, seed k driving environments [k E/S, (k+1) E/S) (`env.streams`);
+    # empty: one seed, `seed`
+    seeds: tuple[int, ...] = ()
 
 
 @dataclass
@@ -119,9 +124,13 @@ class TrafficScenario(BaseScenario):
             end_fraction=settings.spawn_end_fraction,
             margin_m=settings.spawn_margin_m,
         )
-        self.rng = torch.Generator(device=device)
-        self.noise_rng = torch.Generator(device=device)
-        self.seed(settings.seed)
+        seeds = settings.seeds or (settings.seed,)
+        if batch_dim % len(seeds):
+            raise ValueError(f"{batch_dim} environments do not split into {len(seeds)} seeds")
+        self.n_seeds = len(seeds)
+        self.rng = SeedStreams(self.n_seeds, device)
+        self.noise_rng = SeedStreams(self.n_seeds, device)
+        self.seed(seeds)
         self._init_rules(settings)
 
         world = World(batch_dim, device, dt=DT, substeps=1, drag=0.0)
@@ -169,11 +178,12 @@ class TrafficScenario(BaseScenario):
         self.raw_geo: paper.RawGeometry | None = None
         self.d_line = None  # raw center-line distance (raw_center_line), else geo.d_center
 
-    def seed(self, seed: int) -> None:
+    def seed(self, seed: int | Sequence[int]) -> None:
         """Reseed the spawn and the noise generators (separate streams, so that spawns do not
-        depend on how much noise an observation design draws)."""
-        self.rng.manual_seed(seed)
-        self.noise_rng.manual_seed(seed + 7919)
+        depend on how much noise an observation design draws); a block takes one seed per seed."""
+        seeds = [seed] if isinstance(seed, int) else list(seed)
+        self.rng.seed(seeds)
+        self.noise_rng.seed([s + 7919 for s in seeds])
 
     # ---- state -------------------------------------------------------------------------
     def _alloc(self, n_env: int, device) -> None:
@@ -191,6 +201,7 @@ class TrafficScenario(BaseScenario):
         self.rew = z()
         self.terms: dict[str, torch.Tensor] = {}
         self.obs: torch.Tensor | None = None
+        self.last_obs: torch.Tensor | None = None  # before a reset (what a block's other seeds keep)
         self.pending_reset = torch.ones(n_env, dtype=torch.bool, device=device)
 
     def reset_world_at(self, env_index: int | None = None) -> None:
@@ -199,11 +210,16 @@ class TrafficScenario(BaseScenario):
             self.pending_reset[:] = True
         else:
             self.pending_reset[env_index] = True
-        self.obs = None
+        self._drop_obs()
 
     def reset_envs(self, mask: torch.Tensor) -> None:
         """Mark several environments for a reset at once (batched counterpart of reset_world_at)."""
         self.pending_reset |= mask
+        self._drop_obs()
+
+    def _drop_obs(self) -> None:
+        if self.obs is not None:
+            self.last_obs = self.obs
         self.obs = None
 
     def current_observation(self) -> torch.Tensor:
@@ -244,7 +260,7 @@ class TrafficScenario(BaseScenario):
         # Agents being replaced do not block the sampler: park them far away.
         pos = torch.where(place.unsqueeze(-1), torch.full_like(self.pos, 1e6), self.pos)
         route, idx = sample_spawns(self.bank, pos, place, self.spawn_lo, self.spawn_hi, self.rng)
-        speed = torch.rand(place.shape, generator=self.rng, device=self.pos.device) * MAX_SPEED
+        speed = self.rng.rand(self._per_seed(place.shape), self.rng.active(place)) * MAX_SPEED
         heading = self.bank.heading[route, idx]
         self.route = torch.where(place, route, self.route)
         self.index = torch.where(place, idx, self.index)
@@ -380,7 +396,13 @@ class TrafficScenario(BaseScenario):
         beyond = ((self.pos - end) * direction).sum(-1) > 0
         return ~b.is_loop[self.route] & (self.index >= last) & beyond
 
-    def _observe(self) -> None:
+    def _per_seed(self, shape: Sequence[int]) -> tuple[int, ...]:
+        """One seed's share of a [S * E, ...] shape."""
+        return (shape[0] // self.n_seeds, *shape[1:])
+
+    def _observe(self, active: list[bool] | None = None) -> None:
+        """The observation of the current state; in a block only for the seeds `active` names
+        (a lone run of the others would not observe now: they keep theirs, and draw no noise)."""
         rules = self.rules
         speed = self.speed.abs() if rules.unsigned_speed else self.speed
         ego = self.flags.ego_view and rules.others_velocity_heading
@@ -396,18 +418,22 @@ class TrafficScenario(BaseScenario):
         )
         obs = build_observation(x, self.flags)
         if self.noise > 0:
-            u = torch.rand(obs.shape, generator=self.noise_rng, device=obs.device)
+            u = self.noise_rng.rand(self._per_seed(obs.shape), active)
             obs = obs + u * self.noise if rules.one_sided_noise else obs + (u - 0.5) * self.noise
+        if active is not None and not all(active) and self.last_obs is not None:
+            rows = torch.tensor(active, device=obs.device).repeat_interleave(obs.shape[0] // self.n_seeds)
+            obs = torch.where(rows.view(-1, 1, 1), obs, self.last_obs)
         self.obs = obs
         self.obs_ref_points = self.geo.ref_points  # what the next reward measures progress against
 
     def _refresh(self) -> None:
         """Observation of the current state (after resets)."""
+        active = self.noise_rng.active(self.pending_reset)
         place = self._flush_resets()
         if place is not None:
             self._spawn_geometry(place)
         self._record_step_end()
-        self._observe()
+        self._observe(active)
 
     def set_state(
         self,

@@ -6,6 +6,7 @@ import torch
 
 from sigmarl.env.params import VEHICLE
 from sigmarl.env.route_bank import RouteBank
+from sigmarl.env.streams import SeedStreams
 from sigmarl.errors import SigmarlError
 from sigmarl.maps.model import RESAMPLE_STEP
 
@@ -45,7 +46,7 @@ def sample_spawns(
     place: torch.Tensor,
     lo: torch.Tensor,
     hi: torch.Tensor,
-    generator: torch.Generator,
+    streams: SeedStreams,
     route_choices: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """New (route, index) for the agents where `place` [E, A] is True.
@@ -53,6 +54,8 @@ def sample_spawns(
     Candidates are drawn for all pending agents at once; a candidate is kept
     if it is MIN_GAP from every placed agent and from every other candidate.
     Returns route ids and point indices [E, A] (arbitrary where not placed).
+    In a seed block (`streams` of S seeds, E = S x n) a seed draws candidates only while it
+    still has agents to place, as it would alone.
     """
     device = pos.device
     n_env, n_agents = place.shape
@@ -61,12 +64,14 @@ def sample_spawns(
     index = torch.zeros_like(route)
     where = pos.clone()
     pending = place.clone()
+    per_seed = (n_env // len(streams), n_agents)
     for _ in range(MAX_TRIES):
         if not pending.any():
             return route, index
-        pick = torch.randint(len(choices), (n_env, n_agents), generator=generator, device=device)
+        active = streams.active(pending)
+        pick = streams.randint(len(choices), per_seed, active)
         r = choices[pick]
-        u = torch.rand(n_env, n_agents, generator=generator, device=device)
+        u = streams.rand(per_seed, active)
         i = lo[r] + (u * (hi[r] - lo[r] + 1).to(u.dtype)).long().minimum(hi[r] - lo[r])
         cand = bank.center[r, i]
         trial = torch.where(pending.unsqueeze(-1), cand, where)

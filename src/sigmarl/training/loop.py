@@ -1,46 +1,48 @@
-"""`train(cfg)`: the MAPPO training loop, checkpointed, resumable, tracked in MLflow.
+"""`train(cfg)` and `train_block(cfgs)`: the MAPPO training loop, checkpointed, resumable,
+tracked in MLflow, for one seed (`lone.LoneLearner`) or a block of seeds of one training config
+trained as one batched computation (`block.BlockLearner`).
 
-Exact resume: every iteration starts from a state that depends only on (seed, iteration):
-the global generators and the environment are reseeded and every environment is reset. A
-checkpoint after iteration k (weights, optimiser, best reward, RNG states) is therefore all
-that iteration k+1 needs, and a resumed run ends with the same weights as an uninterrupted one.
+Exact resume: every iteration starts from a state that depends only on (seed, iteration): the
+generators and the environment are reseeded and every environment is reset. A checkpoint after
+iteration k (weights, optimiser, best reward) is therefore all that iteration k+1 needs, and a
+resumed run ends with the same weights as an uninterrupted one. A block resumes whole, from the
+one iteration its seeds' checkpoints share (`block_record`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
-import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
-import numpy as np
 import torch
 
 from sigmarl import crash
-from sigmarl.config import Config, PPOConfig, as_dict, to_yaml
-from sigmarl.errors import SigmarlError, Terminated, was_interrupted
+from sigmarl.config import Config, PPOConfig, as_dict
+from sigmarl.errors import SigmarlError
+from sigmarl.identity import differences
 from sigmarl.paths import ensure_writable
 from sigmarl.progress import Progress
-from sigmarl.run import CONFIG_FILE, REWARD_COLUMN, RUN_ID_FILE, Run, write_atomic
-from sigmarl.tracking import Tracker, TrainingRun, flatten, open_tracker
+from sigmarl.run import Run
+from sigmarl.tracking import Tracker, flatten, open_tracker
 from sigmarl.training import checkpoint as ckpt
-from sigmarl.training import metrics_file
-from sigmarl.training.mappo import (
-    collect,
-    make_collector,
-    make_gae,
-    rollout_stats,
-    update,
+from sigmarl.training.block_record import (
+    block_name,
+    check_membership,
+    commit_checkpoints,
+    settle_checkpoints,
+    write_membership,
 )
-from sigmarl.training.metrics_file import METRICS_FILE
-from sigmarl.training.networks import ACTION, OBS, make_actor, make_critic, make_sampler
-from sigmarl.training.ppo_loss import make_loss, resolve_precision
+from sigmarl.training.lone import LoneLearner, iteration_seed
+from sigmarl.training.networks import make_actor
+from sigmarl.training.ppo_loss import resolve_precision
+from sigmarl.training.seed_run import SeedRun, finish_records
 from sigmarl.validate import check
 
-# what a resume must share with the interrupted run (anything else, e.g. threads, device,
-# evaluation settings, may change); ppo.stop_after is the interruption itself
-RESUME_MUST_MATCH = ("map.", "obs.", "env.", "network.", "ppo.", "seed", "rules.")
+__all__ = ["TrainResult", "iteration_seed", "learning_rate", "load_policy", "train", "train_block"]
 
 
 @dataclass
@@ -53,9 +55,9 @@ class TrainResult:
     history: list[dict[str, float]] = field(default_factory=list)  # this invocation's iterations
 
 
-def iteration_seed(seed: int, iteration: int) -> int:
-    """A well-mixed 31-bit seed per (run seed, iteration)."""
-    return int(np.random.SeedSequence([seed, iteration]).generate_state(1)[0] >> 1)
+# what a resume must share with the interrupted run (anything else, e.g. threads, device,
+# evaluation settings, may change); ppo.stop_after is the interruption itself
+RESUME_MUST_MATCH = ("map.", "obs.", "env.", "network.", "ppo.", "seed", "rules.")
 
 
 def learning_rate(ppo: PPOConfig, iteration: int) -> float:
@@ -89,18 +91,18 @@ def config_changes(saved: dict[str, Any], cfg: Config) -> list[str]:
     return changed
 
 
-def _resume_point(cfg: Config, run_dir: Path, device: torch.device) -> dict[str, Any] | None:
+def _resume_point(cfg: Config, run: Run, device: torch.device) -> dict[str, Any] | None:
     """The checkpoint to resume from, or None to start from scratch.
 
     A folder without `checkpoint.pt` holds no training to continue (a run killed before its
     first checkpoint leaves at most config.yaml and mlflow_run_id), so it starts from scratch
     without asking; one with `checkpoint.pt` is resumed with resume=true and never overwritten.
     """
-    path = run_dir / ckpt.RESUME_FILE
+    path, run_dir = run.resume_file, run.dir
     if not path.exists():
-        if (run_dir / ckpt.FINAL_FILE).exists():
-            raise SigmarlError(f"{run_dir} holds a finished model ({ckpt.FINAL_FILE}) but no "
-                               f"{ckpt.RESUME_FILE}; choose another run_dir=...")
+        if run.final_file.exists():
+            raise SigmarlError(f"{run_dir} holds a finished model ({run.final_file.name}) but no "
+                               f"{path.name}; choose another run_dir=...")
         if cfg.resume and not run_dir.is_dir():
             raise SigmarlError(f"no checkpoint at {path} to resume from")
         if run_dir.is_dir() and any(run_dir.iterdir()):
@@ -109,7 +111,7 @@ def _resume_point(cfg: Config, run_dir: Path, device: torch.device) -> dict[str,
         return None
     if not cfg.resume:
         raise SigmarlError(
-            f"{run_dir} already holds a training run ({ckpt.RESUME_FILE}); pass resume=true "
+            f"{run_dir} already holds a training run ({path.name}); pass resume=true "
             "to continue it, or choose another run_dir=..."
         )
     state = ckpt.load(path, device, resume=True)
@@ -146,239 +148,169 @@ def _compare_resolved(saved: dict[str, Any] | None, now: dict[str, Any], path: P
               "last bits)", file=sys.stderr)
 
 
-def _env_dims(env: Any) -> dict[str, Any]:
-    obs_shape = env.full_observation_spec[OBS].shape
-    box = env.full_action_spec[ACTION].space
-    n_act = box.low.shape[-1]
-    return {
-        "obs_dim": int(obs_shape[-1]),
-        "n_agents": int(obs_shape[-2]),
-        "action_low": box.low.reshape(-1, n_act)[0].cpu(),
-        "action_high": box.high.reshape(-1, n_act)[0].cpu(),
-    }
-
-
-@dataclass
-class Parts:
-    """Everything one training run is made of (also used by the benchmark)."""
-
-    env: Any
-    actor: Any
-    critic: Any
-    loss: Any
-    gae: Any
-    optimiser: torch.optim.Optimizer
-    dims: dict[str, Any]
-    collector: Any
-
-    def close(self) -> None:
-        self.collector.shutdown()
-        if not self.env.is_closed:
-            self.env.close()
-
-
-def build(cfg: Config, device: torch.device) -> Parts:
-    """Training environment, networks (initialised from cfg.seed), loss, GAE and optimiser."""
-    from sigmarl.env import make_env
-
-    env = make_env(cfg, num_envs=cfg.ppo.num_envs, mode="train", seed=cfg.seed, device=str(device))
-    dims = _env_dims(env)
-    torch.manual_seed(cfg.seed)  # network initialisation
-    actor = make_actor(cfg.network, dims["obs_dim"], dims["n_agents"], dims["action_low"],
-                       dims["action_high"], device)
-    critic = make_critic(cfg.network, dims["obs_dim"], dims["n_agents"], device)
-    optimiser = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=cfg.ppo.lr)
-    collector = make_collector(env, make_sampler(actor), cfg.ppo.frames_per_iteration, device)
-    return Parts(env, actor, critic, make_loss(actor, critic, cfg.ppo, resolve_precision(cfg)), make_gae(critic, cfg.ppo),
-                 optimiser, dims, collector)
 
 
 def train(cfg: Config, tracker: Tracker | None = None) -> TrainResult:
     """Train (or resume, or complete) the run of `cfg` in its run folder, which this process
     holds for the whole time (a second process is refused in one line). Recorded to `tracker`
     (default: the one `cfg` chooses)."""
-    check(cfg)  # a no-op for a composed config; a Config built in code is checked too
-    run_dir = Path(cfg.run_dir)
-    ensure_writable(run_dir.parent, "choose another run_dir=...")
-    with Run(run_dir).lock():
-        return _train(cfg, run_dir, tracker)
+    return train_block([cfg], [tracker] if tracker else None)[0]
 
 
-def _train(cfg: Config, run_dir: Path, tracker: Tracker | None) -> TrainResult:
-    resolved = resolved_settings(cfg)
-    torch.set_num_threads(cfg.threads)
-    device = _device(cfg.device)
-    state = _resume_point(cfg, run_dir, device)
-    ensure_writable(run_dir, "choose another run_dir=...")
-    if state and state["iteration"] >= cfg.ppo.iterations:
-        return _complete(cfg, run_dir, state, tracker)
+def train_block(cfgs: Sequence[Config], trackers: Sequence[Tracker] | None = None,
+                batched: bool | None = None) -> list[TrainResult]:
+    """Train the seeds of `cfgs` (one training config, one config per seed) together: a block
+    (batched: one process, one batched computation) where there are several seeds or `batched`
+    says so, else the lone run. Every seed's folder is held for the whole time."""
+    cfgs = [check(c) for c in cfgs]  # a no-op for a composed config; one built in code is checked too
+    _check_block(cfgs)
+    for c in cfgs:
+        ensure_writable(Path(c.run_dir).parent, "choose another run_dir=...")
+    with contextlib.ExitStack() as held:
+        for c in cfgs:
+            held.enter_context(Run(c.run_dir).lock())
+        return _train(cfgs, trackers, len(cfgs) > 1 if batched is None else batched)
 
-    start = state["iteration"] if state else 0
-    best = state.get("best_reward") if state else None
-    record = _open_record(tracker or open_tracker(cfg), run_dir, state)  # the store is checked before any work
-    record.set_tags({f"resolved.{k}": str(v) for k, v in resolved.items()})  # what actually ran
-    run_id = record.run_id
+
+def _check_block(cfgs: Sequence[Config]) -> None:
+    """One training config, distinct seeds, distinct folders; what a block cannot batch is
+    refused before anything is built."""
+    first = cfgs[0]
+    seeds = [c.seed for c in cfgs]
+    if len(set(seeds)) != len(seeds):
+        raise SigmarlError(f"a seed block needs distinct seeds, got {seeds}")
+    for c in cfgs[1:]:
+        if c.fingerprint != first.fingerprint or c.model != first.model:
+            raise SigmarlError(f"a seed block trains one config; seed {c.seed} differs from seed {first.seed} "
+                               f"({differences(first, c) or 'label ' + c.model})")
+    if len(cfgs) > 1 and first.ppo.loss != "lean":
+        raise SigmarlError("a seed block trains with ppo.loss=lean (torchrl's ClipPPOLoss is a lone run's)")
+    if len(cfgs) > 1 and not first.network.shared_critic_value:
+        raise SigmarlError("a seed block needs network.shared_critic_value=true (a critic head per agent "
+                           "is not batched over seeds)")
+
+
+def _train(cfgs: list[Config], trackers: Sequence[Tracker] | None, batched: bool) -> list[TrainResult]:
+    first = cfgs[0]
+    resolved = resolved_settings(first)
+    torch.set_num_threads(first.threads)
+    device = _device(first.device)
+    folders = [Run(c.run_dir) for c in cfgs]
+    check_membership(folders, [c.seed for c in cfgs])
+    if batched:
+        settle_checkpoints(folders)
+    states = [_resume_point(c, f, device) for c, f in zip(cfgs, folders, strict=True)]
+    for c in cfgs:
+        ensure_writable(Path(c.run_dir), "choose another run_dir=...")
+    runs = [SeedRun(c, s, resolved) for c, s in zip(cfgs, states, strict=True)]
+    trackers = list(trackers) if trackers else [open_tracker(c) for c in cfgs]
+    if all(s and s["iteration"] >= first.ppo.iterations for s in states):
+        return [_result(r, r.state["iteration"], True, r.complete_finished(t)) for r, t in zip(runs, trackers,
+                                                                                                strict=True)]
+    if len({r.start for r in runs}) > 1:
+        raise SigmarlError("the block's seeds stand at different iterations ("
+                           + ", ".join(f"seed {r.cfg.seed}: {r.start}" for r in runs)
+                           + "); they were not trained as this block: train them alone, or as the block they were")
+    tags = {"block": block_name(first.model, [c.seed for c in cfgs])} if batched else {}
+    for r, t in zip(runs, trackers, strict=True):  # the stores are checked before any work
+        r.open_record(t, tags)
     try:
-        parts = build(cfg, device)
-        if state:
-            _load_state(parts, state, run_dir / ckpt.RESUME_FILE)
+        learner = _learner(cfgs, device, batched)
+        for k, r in enumerate(runs):
+            r.dims = learner.dims
+            if r.state:
+                _load_state(learner, k, r.state, r.run.resume_file)
     except BaseException as e:
-        _finish_and_raise(record, e)
-    actor, critic, optimiser = parts.actor, parts.critic, parts.optimiser
+        finish_records(runs, e)
+    if batched:
+        write_membership(folders, first.model, [c.seed for c in cfgs])
+    return _iterate(cfgs, runs, learner)
 
-    def snapshot(iteration: int, reward: float | None) -> dict[str, Any]:
-        return {
-            "format": ckpt.FORMAT,
-            "kind": "resume",
-            "iteration": iteration,
-            "policy": actor.state_dict(),
-            "critic": critic.state_dict(),
-            "optimizer": optimiser.state_dict(),
-            "rng": ckpt.rng_state(),
-            "best_reward": best,
-            "mean_episode_reward": reward,
-            "mlflow_run_id": run_id,
-            "config": as_dict(cfg),
-            "dims": parts.dims,
-            "resolved": resolved,
-        }
 
-    ppo = cfg.ppo
+def _learner(cfgs: list[Config], device: torch.device, batched: bool):
+    if not batched:
+        return LoneLearner(cfgs[0], device)
+    from sigmarl.training.block import BlockLearner
+
+    return BlockLearner(cfgs[0], [c.seed for c in cfgs], device)
+
+
+def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResult]:
+    """The iterations from the seeds' common resume point to the end (or ppo.stop_after)."""
+    ppo = cfgs[0].ppo
+    start = runs[0].start
     stop = min(ppo.stop_after, ppo.iterations) if ppo.stop_after > 0 else ppo.iterations
-    pending: list[tuple[int, dict[str, float]]] = []  # metrics not yet sent (see below)
-    history: list[dict[str, float]] = []
-    metrics_path = run_dir / METRICS_FILE
-    bar = Progress(ppo.iterations, f"{cfg.model} seed {cfg.seed}", "train", initial=start)
+    label = f"{cfgs[0].model} seed {cfgs[0].seed}" if len(cfgs) == 1 else \
+        block_name(cfgs[0].model, [c.seed for c in cfgs])
+    bar = Progress(ppo.iterations, label, "train", initial=start)
     try:
-        if state:
-            # the rows after the resume point are computed again; MLflow gets what it missed
-            record.sync_metrics(metrics_file.truncate(metrics_path, start))
-        else:
-            write_atomic(run_dir / CONFIG_FILE, to_yaml(cfg))
-            metrics_path.unlink(missing_ok=True)
-            record.log_artifact(run_dir / CONFIG_FILE)
+        for r in runs:
+            r.begin()
+        if start == 0:
             crash.point("train:start")
             # a resume point before the first iteration: a kill at any later instant resumes
-            ckpt.save_atomic(snapshot(0, None), run_dir / ckpt.RESUME_FILE)
-        batches = iter(parts.collector)
+            _checkpoint(runs, learner, 0, [None] * len(runs))
         for it in range(start, stop):
-            t0 = time.perf_counter()
-            s = iteration_seed(cfg.seed, it)
-            torch.manual_seed(s)
-            parts.env.set_seed(s)
-            for group in optimiser.param_groups:
-                group["lr"] = learning_rate(ppo, it)
-            data = collect(batches)
-            t1 = time.perf_counter()
-            with torch.no_grad():
-                parts.gae(data)
-            t2 = time.perf_counter()
-            losses = update(data, parts.loss, optimiser, ppo)
-            t3 = time.perf_counter()
-            metrics = {
-                **rollout_stats(data),
-                **losses,
-                "lr": optimiser.param_groups[0]["lr"],
-                "frames_per_s": ppo.frames_per_iteration / (t3 - t0),
-                "time_collect_s": t1 - t0,
-                "time_advantage_s": t2 - t1,
-                "time_optimise_s": t3 - t2,
-            }
-            done_its = it + 1
-            history.append(metrics)
-            pending.append((done_its, metrics))
-            metrics_file.append(metrics_path, done_its, metrics)
-            crash.point(f"train:iteration:{done_its}")
-            reward = metrics[REWARD_COLUMN]
-            if best is None or round(reward, 2) > best:  # the paper: best reward to 2 decimals
-                best = round(reward, 2)
-                ckpt.save_atomic(ckpt.policy_only(snapshot(done_its, reward)), run_dir / ckpt.BEST_FILE)
-            if done_its % ppo.checkpoint_every == 0 or done_its == stop:
-                ckpt.save_atomic(snapshot(done_its, reward), run_dir / ckpt.RESUME_FILE)
-                crash.point(f"train:checkpoint:{done_its}")
-                # metrics go out after their checkpoint; a kill in between is made good
-                # from metrics.csv on the next resume, so no iteration is lost or doubled
-                record.log_metrics(pending)
-                pending = []
-            if done_its == ppo.iterations:
-                ckpt.save_atomic(ckpt.policy_only(snapshot(done_its, reward)), run_dir / ckpt.FINAL_FILE)
-                crash.point("train:final")
-            bar.update(1, reward=f"{reward:.3f}", fps=f"{metrics['frames_per_s']:.0f}")
+            rewards = _one_iteration(runs, learner, ppo, it, stop)
+            bar.update(1, reward=" ".join(f"{x:.3f}" for x in rewards), fps=f"{runs[0].history[-1]['frames_per_s']:.0f}")
         if stop == ppo.iterations:
-            _complete_record(record, run_dir, stop)
+            for r in runs:
+                r.complete_record(stop)
     except BaseException as e:  # Ctrl-C, or SIGTERM through the CLI's handler, or a failure
-        _finish_and_raise(record, e)
+        finish_records(runs, e)
     finally:
         bar.close()
-        parts.close()
+        learner.close()
     finished = stop == ppo.iterations
     if not finished:
-        record.finish("KILLED")  # ppo.stop_after: stopped on purpose, resumable
-    return TrainResult(run_dir, stop, finished, best, run_id, history)
+        for r in runs:
+            r.record.finish("KILLED")  # ppo.stop_after: stopped on purpose, resumable
+    return [_result(r, stop, finished, r.run_id) for r in runs]
 
 
-def _load_state(parts: Parts, state: dict[str, Any], path: Path) -> None:
+def _one_iteration(runs: list[SeedRun], learner, ppo: PPOConfig, it: int, stop: int) -> list[float]:
+    learner.reseed(it)
+    learner.set_lr(learning_rate(ppo, it))
+    per_seed, times = learner.iterate()
+    done = it + 1
+    rewards = []
+    for k, (r, metrics) in enumerate(zip(runs, per_seed, strict=True)):
+        metrics = {**metrics, "lr": learning_rate(ppo, it),
+                   "frames_per_s": len(runs) * ppo.frames_per_iteration / times["total"],
+                   "time_collect_s": times["collect"], "time_advantage_s": times["advantage"],
+                   "time_optimise_s": times["optimise"]}
+        rewards.append(r.record_iteration(done, metrics, lambda k=k: learner.state(k)))
+    if done % ppo.checkpoint_every == 0 or done == stop:
+        _checkpoint(runs, learner, done, rewards)
+        crash.point(f"train:checkpoint:{done}")
+        for r in runs:
+            r.send_metrics()
+    if done == ppo.iterations:
+        for k, r in enumerate(runs):
+            r.save_final(r.snapshot(done, rewards[k], learner.state(k)))
+    return rewards
+
+
+def _checkpoint(runs: list[SeedRun], learner, iteration: int, rewards: list[float | None]) -> None:
+    states = [r.snapshot(iteration, rewards[k], learner.state(k)) for k, r in enumerate(runs)]
+    commit_checkpoints([r.run for r in runs], states)
+
+
+def _result(r: SeedRun, iterations: int, finished: bool, run_id: str | None) -> TrainResult:
+    return TrainResult(r.dir, iterations, finished, r.best, run_id, r.history)
+
+
+def _load_state(learner, k: int, state: dict[str, Any], path: Path) -> None:
     """Weights, optimiser and generators of a resume point, checked against the networks."""
-    ckpt.check_weights(state["policy"], parts.actor, "policy", path)
-    ckpt.check_weights(state["critic"], parts.critic, "critic", path)
-    parts.actor.load_state_dict(state["policy"])
-    parts.critic.load_state_dict(state["critic"])
+    actor, critic = learner.networks(k)
+    ckpt.check_weights(state["policy"], actor, "policy", path)
+    ckpt.check_weights(state["critic"], critic, "critic", path)
     try:
-        parts.optimiser.load_state_dict(state["optimizer"])
+        learner.load(k, state)
+    except SigmarlError as e:
+        raise SigmarlError(f"checkpoint {path}: {e}") from e
     except (ValueError, KeyError, RuntimeError) as e:
         raise SigmarlError(f"checkpoint {path}: the optimiser state does not fit ({e})") from e
-    ckpt.set_rng_state(state["rng"])
-
-
-def _finish_and_raise(record: TrainingRun, error: BaseException) -> NoReturn:
-    """End the run KILLED (interrupted: resumable) or FAILED, and re-raise; an interruption
-    that a library turned into its own error is raised as the interruption it was."""
-    if not was_interrupted(error):
-        record.finish("FAILED")
-        raise error
-    record.finish("KILLED")
-    if isinstance(error, KeyboardInterrupt):
-        raise error
-    raise Terminated() from error
-
-
-def _open_record(tracker: Tracker, run_dir: Path, state: dict[str, Any] | None) -> TrainingRun:
-    """Reopen the resumed run's record, or create one; a record left by a start that was killed
-    before its first checkpoint is deleted (it holds nothing the new one will not)."""
-    old = (state or {}).get("mlflow_run_id")
-    record = tracker.training_run(old)
-    id_file = run_dir / RUN_ID_FILE
-    if not state and id_file.exists():
-        tracker.discard_training_run(id_file.read_text().strip())
-    if record.run_id != old:
-        write_atomic(id_file, f"{record.run_id}\n")
-    return record
-
-
-def _complete_record(record: TrainingRun, run_dir: Path, iterations: int) -> None:
-    """Bring the finished run's tracked record up to date (metrics, checkpoints, config)."""
-    record.sync_metrics(metrics_file.read(run_dir / METRICS_FILE, iterations))
-    record.log_missing_artifacts([run_dir / CONFIG_FILE, run_dir / ckpt.BEST_FILE,
-                                  run_dir / ckpt.FINAL_FILE])
-    record.finish("FINISHED")
-
-
-def _complete(cfg: Config, run_dir: Path, state: dict[str, Any], tracker: Tracker | None) -> TrainResult:
-    """A re-run of a finished training: finish what a kill after the last iteration left
-    undone (final.pt, the MLflow record), then report it finished."""
-    iterations = state["iteration"]
-    if not (run_dir / ckpt.FINAL_FILE).exists():  # the last checkpoint holds the final weights
-        ckpt.save_atomic(ckpt.policy_only(state), run_dir / ckpt.FINAL_FILE)
-    run_id = state.get("mlflow_run_id")
-    record = (tracker or open_tracker(cfg)).training_run(run_id, reopen=False)
-    if record.run_id != run_id:  # a store that had no record of it (see MlflowTrainingRun.open)
-        run_id = record.run_id
-        write_atomic(run_dir / RUN_ID_FILE, f"{run_id}\n")
-    if record.status() not in (None, "FINISHED"):
-        print(f"{run_dir}: completing the tracker's record of the finished training")
-        _complete_record(record, run_dir, iterations)
-    print(f"{run_dir}: training already finished ({iterations} iterations)")
-    return TrainResult(run_dir, iterations, True, state.get("best_reward"), run_id)
 
 
 def load_policy(

@@ -1,0 +1,125 @@
+"""One seed's records while it trains, alone or in a block: its run folder (config.yaml,
+metrics.csv, checkpoints), its tracker record, its best reward, the metrics not yet sent.
+
+Order of writes per iteration (what a kill at any instant leaves, and how a resume reads it):
+metrics.csv gets the row, best.pt is replaced if the reward improved, and every
+`ppo.checkpoint_every` iterations the resume point is written and only then are the metrics
+sent to the tracker; a kill in between is made good from metrics.csv on the next resume, so no
+iteration is lost or doubled.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sigmarl import crash
+from sigmarl.config import Config, as_dict, to_yaml
+from sigmarl.errors import Terminated, was_interrupted
+from sigmarl.run import REWARD_COLUMN, Run, write_atomic
+from sigmarl.tracking import Tracker, TrainingRun
+from sigmarl.training import checkpoint as ckpt
+from sigmarl.training import metrics_file
+
+
+class SeedRun:
+    """The run folder and tracked record of one seed of a training."""
+
+    def __init__(self, cfg: Config, state: dict[str, Any] | None, resolved: dict[str, Any]):
+        self.cfg, self.state, self.resolved = cfg, state, resolved
+        self.run = Run(cfg.run_dir)
+        self.dir = self.run.dir
+        self.start = state["iteration"] if state else 0
+        self.best = state.get("best_reward") if state else None
+        self.pending: list[tuple[int, dict[str, float]]] = []
+        self.history: list[dict[str, float]] = []
+        self.record: TrainingRun | None = None
+        self.dims: dict[str, Any] = {}
+
+    @property
+    def run_id(self) -> str | None:
+        return self.record.run_id if self.record else None
+
+    def open_record(self, tracker: Tracker, tags: dict[str, str]) -> None:
+        """Reopen the resumed run's record, or create one; a record left by a start that was
+        killed before its first checkpoint is deleted (it holds nothing the new one will not)."""
+        old = (self.state or {}).get("mlflow_run_id")
+        self.record = tracker.training_run(old)
+        id_file = self.run.run_id_file
+        if not self.state and id_file.exists():
+            tracker.discard_training_run(id_file.read_text().strip())
+        if self.record.run_id != old:
+            write_atomic(id_file, f"{self.record.run_id}\n")
+        self.record.set_tags({**{f"resolved.{k}": str(v) for k, v in self.resolved.items()}, **tags})
+
+    def snapshot(self, iteration: int, reward: float | None, learned: dict[str, Any]) -> dict[str, Any]:
+        """A resume point: `learned` holds the weights, the optimiser and the generators."""
+        return {"format": ckpt.FORMAT, "kind": "resume", "iteration": iteration, **learned,
+                "best_reward": self.best, "mean_episode_reward": reward, "mlflow_run_id": self.run_id,
+                "config": as_dict(self.cfg), "dims": self.dims, "resolved": self.resolved}
+
+    def begin(self) -> None:
+        """A resume: drop the rows after the resume point (computed again) and send the tracker
+        what it missed. A new run: its config.yaml, and no rows."""
+        metrics_path = self.run.metrics_file
+        if self.state:
+            self.record.sync_metrics(metrics_file.truncate(metrics_path, self.start))
+            return
+        write_atomic(self.run.config_file, to_yaml(self.cfg))
+        metrics_path.unlink(missing_ok=True)
+        self.record.log_artifact(self.run.config_file)
+
+    def record_iteration(self, done: int, metrics: dict[str, float], learned) -> float:
+        """An iteration's row, and best.pt if its reward is the best so far (to 2 decimals, the
+        paper's rule); `learned()` gives the weights when they are needed. Returns the reward."""
+        self.history.append(metrics)
+        self.pending.append((done, metrics))
+        metrics_file.append(self.run.metrics_file, done, metrics)
+        crash.point(f"train:iteration:{done}")
+        reward = metrics[REWARD_COLUMN]
+        if self.best is None or round(reward, 2) > self.best:
+            self.best = round(reward, 2)
+            ckpt.save_atomic(ckpt.policy_only(self.snapshot(done, reward, learned())), self.run.best_file)
+        return reward
+
+    def send_metrics(self) -> None:
+        self.record.log_metrics(self.pending)
+        self.pending = []
+
+    def save_final(self, snapshot: dict[str, Any]) -> None:
+        ckpt.save_atomic(ckpt.policy_only(snapshot), self.run.final_file)
+        crash.point("train:final")
+
+    def complete_record(self, iterations: int) -> None:
+        """Bring the finished run's tracked record up to date (metrics, checkpoints, config)."""
+        self.record.sync_metrics(metrics_file.read(self.run.metrics_file, iterations))
+        self.record.log_missing_artifacts([self.run.config_file, self.run.best_file,
+                                           self.run.final_file])
+        self.record.finish("FINISHED")
+
+    def complete_finished(self, tracker: Tracker) -> str | None:
+        """A re-run of a finished training: finish what a kill after the last iteration left
+        undone (final.pt, the tracked record)."""
+        state, iterations = self.state, self.state["iteration"]
+        if not self.run.final_file.exists():  # the last checkpoint holds the final weights
+            ckpt.save_atomic(ckpt.policy_only(state), self.run.final_file)
+        run_id = state.get("mlflow_run_id")
+        self.record = tracker.training_run(run_id, reopen=False)
+        if self.record.run_id != run_id:  # a store that had no record of it
+            write_atomic(self.run.run_id_file, f"{self.record.run_id}\n")
+        if self.record.status() not in (None, "FINISHED"):
+            print(f"{self.dir}: completing the tracker's record of the finished training")
+            self.complete_record(iterations)
+        print(f"{self.dir}: training already finished ({iterations} iterations)")
+        return self.record.run_id
+
+
+def finish_records(runs: list[SeedRun], error: BaseException) -> None:
+    """End every seed's record KILLED (interrupted: resumable) or FAILED, and re-raise; an
+    interruption that a library turned into its own error is raised as the interruption it was."""
+    interrupted = was_interrupted(error)
+    for r in runs:
+        if r.record is not None:
+            r.record.finish("KILLED" if interrupted else "FAILED")
+    if not interrupted or isinstance(error, KeyboardInterrupt):
+        raise error
+    raise Terminated() from error
