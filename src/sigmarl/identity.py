@@ -25,6 +25,11 @@ if TYPE_CHECKING:
 TRAINING_GROUPS = ("map", "obs", "env", "network", "ppo", "rules")
 # names only, or what neither changes the policy nor the numbers it is trained on
 NOT_TRAINING = frozenset({"obs.preset", "map.name", "ppo.checkpoint_every", "ppo.stop_after"})
+# Settings added after fingerprints were first recorded, each with the value every earlier run
+# had. At that value a setting is left out, so that a new key does not change every recorded
+# fingerprint (and split a published study in two); at any other value it counts. A new
+# training setting goes here with its default.
+ADDED_LATER: dict[str, Any] = {"network.centralised_critic": True}
 # a label names a folder and a table column: letters, digits, '.', '_', '-'
 _LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 
@@ -33,7 +38,8 @@ def training_settings(cfg: Config) -> dict[str, Any]:
     """The flat training settings the fingerprint covers."""
     values = as_dict(cfg)
     flat = flatten({g: values[g] for g in TRAINING_GROUPS if g in values})
-    return {k: v for k, v in flat.items() if k not in NOT_TRAINING}
+    return {k: v for k, v in flat.items()
+            if k not in NOT_TRAINING and not (k in ADDED_LATER and v == ADDED_LATER[k])}
 
 
 def fingerprint(cfg: Config) -> str:
