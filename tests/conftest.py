@@ -106,6 +106,9 @@ def env_factory():
         ov = tuple(overrides)
         if not any(o.startswith("obs.noise=") for o in ov):
             ov = ("obs.noise=0", *ov)
+        n = kwargs.get("n_agents")
+        if n is not None and not any(o.startswith("obs.n_nearest=") for o in ov):
+            ov = (f"obs.n_nearest={min(2, n - 1)}", *ov)  # as many neighbours as there are, up to 2
         return Driver(make_env(_cfg(ov), **kwargs))
 
     return make

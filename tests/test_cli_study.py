@@ -61,15 +61,18 @@ def test_evaluate_missing_checkpoint_exits_2(capsys):
 
 
 def test_evaluate_checkpoint_whose_observation_does_not_fit(tmp_path, capsys):
-    # obs.n_nearest=4 with 4 agents observes min(4, 3) = 3 neighbours in training; on the
-    # 6-agent intersection it would observe 4, a different size than the policy takes.
+    # 8 training agents observing 6 neighbours: 10 own entries + 6 x 11 = 76 inputs; on the
+    # 6-agent intersection an agent sees only 5 others (65), so the checkpoint is refused
+    # before any scenario is built.
     run = tmp_path / "run"
-    assert main(["train", "ppo=smoke", "ppo.iterations=1", "obs.n_nearest=4", "tracking.enabled=false",
-                 f"run_dir={run}"]) == 0
+    assert main(["train", "ppo=smoke", "ppo.iterations=1", "env.n_agents=8", "obs.n_nearest=6",
+                 "tracking.enabled=false", f"run_dir={run}"]) == 0
     rc = main(["evaluate", str(run / "final.pt"), "--scenario", "Intersection", "eval.n_sims=1",
                "eval.steps=2", "tracking.enabled=false"])
     assert rc == 2
-    assert "cannot act on Intersection's observations" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "cannot be evaluated on Intersection: its policy takes 76 inputs" in err
+    assert "have 65 (6 agents, 5 observed neighbours" in err
 
 
 def test_report_without_runs_exits_2(tmp_path, capsys):

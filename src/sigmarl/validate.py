@@ -81,6 +81,9 @@ def check(cfg: Config) -> Config:
             f"points lie in the {MAX_REF_REACH} center-line points ahead), got "
             f"{obs.n_ref_points} x {obs.ref_point_stride}")
     _positive("env", cfg.env, ("n_agents", "max_steps"))
+    if obs.n_nearest >= cfg.env.n_agents:
+        raise SigmarlError(f"obs.n_nearest={obs.n_nearest} needs more than env.n_agents={cfg.env.n_agents} "
+                           f"training agents (an agent observes at most the {cfg.env.n_agents - 1} others)")
     _positive("env", cfg.env, ("spawn_start_m", "spawn_margin_m"), strict=False)
     if not 0 < cfg.env.spawn_end_fraction <= 1:
         raise SigmarlError(f"env.spawn_end_fraction must be in (0, 1], got {cfg.env.spawn_end_fraction}")

@@ -119,6 +119,8 @@ def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: i
         raise SigmarlError(f"the number of environments and env.max_steps must be positive, got {num_envs}, {max_steps}")
     if flags.n_nearest < 0 or flags.n_ref_points < 1 or flags.n_ref_points > 3:
         raise SigmarlError("obs.n_nearest must be >= 0 and obs.n_ref_points in 1..3")
+    if flags.n_nearest >= n_agents:  # never capped: a policy's input size would change with it
+        raise SigmarlError(f"obs.n_nearest={flags.n_nearest} neighbours cannot be observed among {n_agents} agents")
 
 
 def make_env(

@@ -355,9 +355,8 @@ class TrafficScenario(BaseScenario):
 
     def _neighbour_geometry(self) -> None:
         self.distances = torch.cdist(self.pos, self.pos)
-        k = min(self.flags.n_nearest, self.n_agents - 1)
         masked = self.distances + self._eye_big
-        self.neighbours = masked.topk(k, dim=-1, largest=False, sorted=True).indices
+        self.neighbours = masked.topk(self.flags.n_nearest, dim=-1, largest=False, sorted=True).indices
 
     def _spawn_table(self) -> EgoGeometry:
         """Ego geometry of a vehicle standing on each center-line point, heading along the

@@ -25,6 +25,7 @@ from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noqa: F401 (their old home)
 from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
+from sigmarl.policy_input import check_evaluable
 from sigmarl.run import ROWS_FILE, ROWS_META, Run, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker, open_tracker
@@ -36,6 +37,8 @@ def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] |
                         device: str = "cpu", progress: bool = True) -> tuple[pd.DataFrame, dict]:
     """Per-simulation rows of a trained policy on each scenario, and the checkpoint's state."""
     scenarios = check_eval(eval_cfg, scenarios or None)
+    saved = ckpt.load(path, device)  # the policy's input size, checked before any scenario is built
+    check_evaluable(ckpt.config_of(saved, path).obs, saved["dims"]["obs_dim"], scenarios, f"checkpoint {path}")
     frames = []
     state = None
     for scenario in scenarios:

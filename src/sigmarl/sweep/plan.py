@@ -20,6 +20,7 @@ from sigmarl.config import Config, StudyConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import eval_key
 from sigmarl.identity import check_label, differences, fingerprint
+from sigmarl.policy_input import check_variant
 from sigmarl.run import Run
 from sigmarl.sweep.command import Command, override_key, read_command, slug
 from sigmarl.validate import SEED_MAX
@@ -131,9 +132,13 @@ def _labelled(command: Command, study: StudyConfig,
 def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: list[int]) -> list[Job]:
     """The variant's jobs, one per seed, from one composition; each checked against the run
     its run folder already holds."""
+    try:
+        configs = compose_seeds(overrides, seeds) if seeds else []
+    except SigmarlError as e:
+        raise SigmarlError(f"variant {label}: {e}") from e
     jobs = []
-    for seed, cfg in zip(seeds, compose_seeds(overrides, seeds) if seeds else [], strict=True):
-        check_eval(cfg.eval)
+    for seed, cfg in zip(seeds, configs, strict=True):
+        check_variant(cfg, check_eval(cfg.eval), label)  # before training, not after it
         earlier = earlier_config(Path(cfg.run_dir))
         if earlier is not None and earlier.fingerprint != cfg.fingerprint:
             raise SigmarlError(f"{cfg.run_dir} holds a run of another training config "
