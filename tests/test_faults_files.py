@@ -125,3 +125,39 @@ def test_f13_a_resume_point_with_a_nan_optimiser_state_is_refused(slot, value, t
     ckpt.load(path)  # evaluation reads only the policy's weights: still usable
     shutil.copy(PAPER_RUN / "checkpoint.pt", path)
     ckpt.load(path, resume=True)
+
+
+@pytest.mark.parametrize("content", [
+    b"",  # emptied
+    b'{"M0/seed0": {"overrides": [], "vari',  # cut
+    b"\xff\xfe{}",  # random bytes
+    b'["M0/seed0"]',  # valid JSON of the wrong shape
+    b'{"M4/seed0": {"overrides": [], "variant": [], "fingerprint": "f"}}',  # another job's plan
+    b'{"M0/seed0": {"overrides": "ppo=smoke", "variant": [], "fingerprint": "f"}}',
+    b'{"M0/seed0": {"overrides": [1], "variant": [], "fingerprint": "f"}}',
+])
+def test_a_damaged_sweep_plan_is_one_line_naming_it(content, tmp_path):
+    from omegaconf import OmegaConf
+
+    from sigmarl.sweep.job import _job_config
+
+    plan = tmp_path / "plan.json"
+    plan.write_bytes(content)
+    with pytest.raises(SigmarlError) as e:
+        _job_config(OmegaConf.create({"study": {"plan": str(plan), "job": "M0/seed0"}}))
+    line = str(e.value)
+    assert "\n" not in line and str(plan) in line and "run the sweep again" in line
+
+
+@pytest.mark.parametrize("note", [b"[1, 2]", b'{"eval_key": 3, "dtypes": "x"}', b"\xff", b'"rows"'])
+def test_a_damaged_rows_note_means_the_rows_are_measured_again(note, tmp_path):
+    from sigmarl.compose import compose_config
+    from sigmarl.evaluation.protocol import _saved_rows, rows_file_for
+
+    run = tmp_path / "M0" / "seed0"
+    run.mkdir(parents=True)
+    shutil.copy(PAPER_RUN / "evaluation_rows.csv", run / "evaluation_rows.csv")
+    (run / "evaluation.json").write_bytes(note)
+    cfg = compose_config(["ppo=smoke"])
+    assert rows_file_for(run / "best.pt", cfg).parent == run  # no traceback on a note that is not a record
+    assert _saved_rows(run / "evaluation_rows.csv", {"eval_key": "k", "checkpoint_sha256": "s"}) is None

@@ -116,3 +116,37 @@ def test_f18_evaluate_is_refused_on_a_run_folder_that_is_being_trained(tmp_path,
         holder.wait()
     assert "in use by another sigmarl process (pid 4242 on trainer)" in line
     assert not run.rows_file.exists()
+
+
+def _finished_run(tmp_path: Path) -> tuple[Run, Job]:
+    run = Run(tmp_path / "M4" / "seed0")
+    run.dir.mkdir(parents=True)
+    for name in ("config.yaml", "evaluation.json", "evaluation_rows.csv", "evaluated.txt"):
+        shutil.copy(PAPER / "M4" / "seed0" / name, run.path(name))
+    key = json.loads(run.rows_meta_file.read_text())["eval_key"]
+    return run, Job("M4/seed0", "M4", 0, [], [], str(run.dir), "f", key)
+
+
+@pytest.mark.parametrize("damage", [
+    lambda b: b[:-30],  # the last line cut
+    lambda b: b[:200] + b"\xff\xfe" + b[202:],  # two bytes flipped into non-UTF-8
+    lambda b: b + b.splitlines(keepends=True)[-1],  # the last row duplicated
+])
+def test_f10_a_run_with_damaged_rows_is_not_finished(tmp_path, damage):
+    run, job = _finished_run(tmp_path)  # rows saved before their note held a hash
+    run.rows_file.write_bytes(damage(run.rows_file.read_bytes()))
+    assert not finished(job)
+
+
+def test_f10_rows_whose_hash_differs_from_their_note_are_not_finished(tmp_path):
+    import hashlib
+
+    run, job = _finished_run(tmp_path)
+    meta = json.loads(run.rows_meta_file.read_text())
+    meta["rows_sha256"] = hashlib.sha256(run.rows_file.read_bytes()).hexdigest()
+    run.rows_meta_file.write_text(json.dumps(meta))
+    assert finished(job)
+    # a value edited into another plausible one passes every check but the hash
+    text = run.rows_file.read_text()
+    run.rows_file.write_text(text[:-8] + ("1" if text[-8] != "1" else "2") + text[-7:])
+    assert not finished(job)

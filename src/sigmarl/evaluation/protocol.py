@@ -26,6 +26,7 @@ from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noq
 from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
 from sigmarl.policy_input import check_evaluable
+from sigmarl.readers import rows_measured
 from sigmarl.run import ROWS_FILE, ROWS_META, Run, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker, open_tracker
@@ -84,10 +85,12 @@ def _meta_path(rows_file: Path) -> Path:
 
 
 def _read_meta(rows_file: Path) -> dict | None:
+    """The rows' note, or None where there is none (or none readable: the rows are measured again)."""
     try:
-        return json.loads(_meta_path(rows_file).read_text())
+        meta = json.loads(_meta_path(rows_file).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
+    return meta if isinstance(meta, dict) else None
 
 
 def _identity(path: Path, cfg: Config) -> dict[str, str]:
@@ -103,19 +106,26 @@ def _sha256(path: Path) -> str:
 
 def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | None:
     meta = _read_meta(rows_file)
-    if meta is None or {k: meta.get(k) for k in identity} != identity or not rows_file.exists():
-        return None
+    if meta is None or {k: meta.get(k) for k in identity} != identity \
+            or not rows_measured(rows_file, _meta_path(rows_file), identity["eval_key"]):
+        return None  # none saved, another protocol's or checkpoint's, or damaged: evaluate again
     # the columns' own types (float32 metrics) make the values read back exactly those written
     exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
-    return pd.read_csv(rows_file, dtype=meta.get("dtypes"), **exact)
+    try:
+        return pd.read_csv(rows_file, dtype=meta.get("dtypes"), **exact)
+    except (ValueError, TypeError):  # a note's dtypes damaged: measure the rows again
+        return None
 
 
 def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) -> None:
     """Rows first, then the note saying what they are: a kill in between leaves no note."""
     _meta_path(rows_file).unlink(missing_ok=True)
-    write_atomic(rows_file, rows.to_csv(index=False))
+    text = rows.to_csv(index=False)
+    write_atomic(rows_file, text)
+    # `rows_sha256`: a cut or edited rows file is evaluated again, not reused or counted finished
     # `rules`: which environment rules measured them (`report --from` leaves out older ones)
-    meta = {**identity, "rules": RULES_REVISION, "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
+    meta = {**identity, "rows_sha256": hashlib.sha256(text.encode("utf-8")).hexdigest(), "rules": RULES_REVISION,
+            "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
     # `rules_label`: the policy's rules switches (`ours`, `paper` or those on; old rows: ours)
     meta["rules_label"] = str(rows["rules"].iloc[0]) if "rules" in rows.columns and len(rows) else "ours"
     write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
@@ -140,9 +150,8 @@ def evaluate_rows(path: Path, cfg: Config, rows_file: Path | None, scenarios=Non
 
 
 def has_rows(rows_file: Path, cfg: Config) -> bool:
-    """Whether `rows_file` holds rows measured under `cfg`'s evaluation protocol."""
-    meta = _read_meta(rows_file)
-    return rows_file.is_file() and meta is not None and meta.get("eval_key") == eval_key(cfg.eval)
+    """Whether `rows_file` holds whole rows measured under `cfg`'s evaluation protocol."""
+    return rows_measured(rows_file, _meta_path(rows_file), eval_key(cfg.eval))
 
 
 def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenarios=None,

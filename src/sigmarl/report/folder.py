@@ -179,7 +179,8 @@ def _rules_of(run: RunFolder) -> int | None:
         meta = json.loads(Run(run.path).rows_meta_file.read_text())
     except (OSError, ValueError):
         return None
-    return int(meta.get("rules", 1)) if isinstance(meta, dict) else None
+    rules = meta.get("rules", 1) if isinstance(meta, dict) else None
+    return rules if isinstance(rules, int) and not isinstance(rules, bool) else None
 
 
 def read_results(root: Path) -> FolderResults:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import traceback
@@ -17,9 +16,10 @@ from sigmarl.compose import compose_config
 from sigmarl.config import Config, as_config
 from sigmarl.errors import SigmarlError, handle_sigterm, interruption, raise_if_interrupted
 from sigmarl.eval_key import eval_key
-from sigmarl.evaluation.protocol import evaluate_and_log
+from sigmarl.evaluation.protocol import evaluate_and_log, evaluate_rows, has_rows
 from sigmarl.identity import differences
 from sigmarl.progress import emit
+from sigmarl.readers import read_json
 from sigmarl.resources import end_with_the_sweep, enter_sweep_folder, job_threads, use_threads
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep.plan import earlier_config
@@ -71,7 +71,12 @@ def _train_and_evaluate(cfg: Config, run_dir: Path) -> str:
         if not result.finished:
             return "interrupted"
         if result.run_id and (done := tracker.finished_evaluation(result.run_id, eval_key(cfg.eval))):
-            emit(f"{run_dir}: already evaluated")
+            if has_rows(run.rows_file, cfg):
+                emit(f"{run_dir}: already evaluated")
+            else:  # the store holds the evaluation, the folder lost its rows: measure them again
+                emit(f"{run_dir}: evaluated, but its {run.rows_file.name} is missing or damaged: evaluating again",
+                     logging.WARNING)
+                evaluate_rows(run.checkpoint(cfg.eval.checkpoint), cfg, run.rows_file)
             run.mark_done(done)
             return "done"
         _, eval_run = evaluate_and_log(run.checkpoint(cfg.eval.checkpoint), cfg, result.run_id,
@@ -128,10 +133,7 @@ def _job_config(cfg: DictConfig | Config) -> Config:
     plan, key = str(cfg.study.plan), str(cfg.study.job)
     if not plan:
         return as_config(cfg)
-    try:
-        entry = json.loads(Path(plan).read_text())[key]
-    except (OSError, ValueError, KeyError) as e:
-        raise SigmarlError(f"cannot read job {key!r} of the sweep plan {plan}: {e}") from e
+    entry = _plan_entry(Path(plan), key)
     state = Singleton.get_state()  # composing here must not disturb the running Hydra job
     try:
         job = compose_config(entry["overrides"])
@@ -141,3 +143,16 @@ def _job_config(cfg: DictConfig | Config) -> Config:
         raise SigmarlError(f"job {key}: its config changed since the sweep was planned "
                            "(config files edited?); run the sweep again")
     return replace(job, overrides=list(entry["variant"]))
+
+
+def _plan_entry(plan: Path, key: str) -> dict:
+    """The job's entry of the plan file (written whole by `write_plan`, but a user's disk or
+    hand can damage it), or one line naming the file."""
+    fix = "run the sweep again (it writes its plan anew)"
+    entry = read_json(plan, "the sweep's plan", fix, shape={key: dict})[key]
+    shape = {"overrides": list, "variant": list, "fingerprint": str}
+    if any(not isinstance(entry.get(k), kind) for k, kind in shape.items()) \
+            or not all(isinstance(o, str) for o in entry["overrides"] + entry["variant"]):
+        raise SigmarlError(f"{plan}: the sweep's plan entry of job {key!r} is not overrides, variant and "
+                           f"fingerprint; {fix}")
+    return entry

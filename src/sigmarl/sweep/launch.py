@@ -16,6 +16,7 @@ import hydra
 from sigmarl.compose import search_path_override
 from sigmarl.config import register_configs
 from sigmarl.paths import CONFIG_PATH, conf_dir, user_conf_dirs
+from sigmarl.readers import rows_measured
 from sigmarl.resources import sweep_folder_override, sweep_owner_override
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep.plan import Job, SweepPlan, plan_sweep
@@ -75,17 +76,12 @@ def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
 
 def finished(job: Job) -> bool:
     """Whether the job's run folder holds this very job, done: `evaluated.txt`, no `failed.txt`,
-    a config.yaml of the same fingerprint (checked when the plan was made) and rows measured
-    under the job's evaluation protocol."""
+    a config.yaml of the same fingerprint (checked when the plan was made) and whole rows
+    measured under the job's evaluation protocol."""
     run = Run(job.run_dir)
-    if not run.done_file.is_file() or run.failed_file.exists():
+    if not run.done_file.is_file() or run.failed_file.exists() or not run.config_file.is_file():
         return False
-    try:
-        evaluated = json.loads(run.rows_meta_file.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return False
-    return run.config_file.is_file() and run.rows_file.is_file() and isinstance(evaluated, dict) \
-        and evaluated.get("eval_key") == job.eval_key
+    return rows_measured(run.rows_file, run.rows_meta_file, job.eval_key)
 
 
 def summarise(plan: SweepPlan) -> int:
