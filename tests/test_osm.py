@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -9,11 +11,12 @@ import pytest
 
 from sigmarl.compose import compose_config
 from sigmarl.errors import MapError, SigmarlError
-from sigmarl.maps import load_map
+from sigmarl.maps import load_map, routes
 from sigmarl.maps.cpm import CPM_LOOPS, load_cpm
-from sigmarl.maps.model import RoadMap
+from sigmarl.maps.model import Lanelet, RoadMap
 from sigmarl.maps.osm import load_osm
 from sigmarl.maps.osm_write import save_lanelet2_osm
+from sigmarl.maps.routes import enumerate_routes
 
 DATA = Path(__file__).parent / "data"
 CENTERLINE = DATA / "centerline_ways.osm"
@@ -210,3 +213,67 @@ def test_osm_through_config(tmp_path):
     assert m.name == "lanelet2_two_way" and [r.lanelet_ids for r in m.routes] == [(10, 30)]
     with pytest.raises(SigmarlError, match="map.path"):  # caught at composition now
         compose_config(["map=osm"])
+
+
+# --- route enumeration on long or looping lanelet graphs -------------------------------------
+
+
+def _graph(successors: dict[int, list[int]]) -> dict[int, Lanelet]:
+    line = np.array([[0.0, 0.0], [1.0, 0.0]])
+    predecessors: dict[int, list[int]] = {i: [] for i in successors}
+    for a, nexts in successors.items():
+        for b in nexts:
+            predecessors[b].append(a)
+    return {i: Lanelet(i, line + [0, 0.1], line - [0, 0.1], list(s), predecessors[i]) for i, s in successors.items()}
+
+
+def _forks(k: int) -> dict[int, list[int]]:
+    """Entry 1 into hub 100; hub 100+j forks into 200+j and 300+j, which join at hub 101+j;
+    the last hub leads back to hub 100: 2**k partial paths and no exit."""
+    succ = {1: [100], 100 + k: [100]}
+    for j in range(k):
+        succ[100 + j] = [200 + j, 300 + j]
+        succ[200 + j] = succ[300 + j] = [101 + j]
+    return succ
+
+
+def test_a_chain_longer_than_the_recursion_limit_is_one_route():
+    n = 3 * sys.getrecursionlimit()
+    routes = enumerate_routes(_graph({i: [i + 1] if i < n else [] for i in range(1, n + 1)}))
+    assert routes == [list(range(1, n + 1))]
+
+
+def test_forks_that_loop_back_without_an_exit_stop_at_the_bound():
+    started = time.perf_counter()
+    with pytest.raises(MapError, match=r"more than 1,000 steps and 0 routes .*list the routes"):
+        enumerate_routes(_graph(_forks(22)), max_steps=1000)
+    with pytest.raises(MapError, match=r"more than 200,000 steps"):
+        enumerate_routes(_graph(_forks(22)))
+    assert time.perf_counter() - started < 30
+
+
+def test_forks_with_an_exit_give_every_route_and_stop_at_the_route_bound():
+    succ = _forks(3)
+    succ[103] = [100, 999]  # the last hub also leaves the map
+    succ[999] = []
+    routes = enumerate_routes(_graph(succ))
+    assert len(routes) == 2**3 and all(r[0] == 1 and r[-1] == 999 for r in routes)  # each fork: up or down
+    assert routes[0] == [1, 100, 200, 101, 201, 102, 202, 103, 999]  # depth first, successors in order
+    with pytest.raises(MapError, match=r"more than 7 routes"):
+        enumerate_routes(_graph(succ), max_routes=7)
+
+
+def test_a_map_file_of_looping_forks_is_one_error_naming_it(tmp_path, monkeypatch):
+    nodes = {1: (-1.0, 0.0), 999: (9.0, 3.0)}
+    ways = {1: [1, 100], 9: [108, 999, 100]}
+    for j in range(8):
+        nodes.update({100 + j: (2.0 * j, 0.0), 200 + j: (2.0 * j + 1, 0.5), 300 + j: (2.0 * j + 1, -0.5)})
+        ways[10 + 2 * j], ways[11 + 2 * j] = [100 + j, 200 + j, 101 + j], [100 + j, 300 + j, 101 + j]
+    nodes[108] = (16.0, 0.0)
+    body = "".join(f"<node id='{i}' lat='{50 + x * 1e-5!r}' lon='{6 + y * 1e-5!r}'/>" for i, (x, y) in nodes.items())
+    body += "".join(f"<way id='{w}'>" + "".join(f"<nd ref='{r}'/>" for r in refs) + f"<tag k='lanes' v='{w}'/></way>"
+                    for w, refs in ways.items())
+    f = write(tmp_path, body)
+    with pytest.raises(MapError, match=r"bad\.osm: more than 10 steps and 0 routes"):
+        monkeypatch.setattr(routes, "MAX_STEPS", 10)
+        load_osm(f)

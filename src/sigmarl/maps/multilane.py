@@ -87,15 +87,17 @@ def find_side_by_side(lanelets: dict[int, Lanelet], width: float) -> None:
         la.beside_left, la.beside_right = [], []
     opposite = {"left": "right", "right": "left"}
     reach = BESIDE_MAX * width
-    box = {i: (la.center.min(0) - reach, la.center.max(0) + reach) for i, la in lanelets.items()}
-    for lane in lanelets.values():
-        lo, hi = box[lane.id]
-        for other in lanelets.values():
-            linked = other.id in lane.successors or other.id in lane.predecessors
-            far = np.any(other.center.max(0) < lo) or np.any(other.center.min(0) > hi)
-            if other.id == lane.id or linked or far:
+    lanes = list(lanelets.values())
+    centers = [la.center for la in lanes]
+    lows, highs = np.stack([c.min(0) for c in centers]), np.stack([c.max(0) for c in centers])
+    for k, lane in enumerate(lanes):
+        # only lanes whose bounding boxes come within reach (a map of many lanelets stays fast)
+        near = ~((highs < lows[k] - reach) | (lows > highs[k] + reach)).any(1)
+        for j in np.flatnonzero(near):
+            other = lanes[j]
+            if other.id == lane.id or other.id in lane.successors or other.id in lane.predecessors:
                 continue
-            side = beside_side(lane.center, other.center, width)
+            side = beside_side(centers[k], centers[j], width)
             if side is not None:
                 getattr(lane, f"beside_{side}").append(other.id)
                 # The shorter lane lies beside the longer one too: the relation is mutual.

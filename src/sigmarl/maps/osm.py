@@ -307,7 +307,10 @@ def _adjacency(lanelets: dict[int, Lanelet], info: dict[int, tuple], path: Path)
 
 def _routes(path: Path, lanelets: dict[int, Lanelet], routes: Sequence | None) -> list[Route]:
     if not routes:
-        seqs = enumerate_routes(lanelets)
+        try:
+            seqs = enumerate_routes(lanelets)
+        except MapError as e:
+            raise MapError(f"{path}: {e}") from None
         if not seqs:
             raise MapError(f"{path}: no entry lanelets (every lanelet has a predecessor); list the routes explicitly")
         specs = [(ids, False) for ids in seqs]

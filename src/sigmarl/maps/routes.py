@@ -178,25 +178,53 @@ def build_route(
     )
 
 
-def enumerate_routes(
-    lanelets: dict[int, Lanelet], entries: Sequence[int] | None = None, max_routes: int = 10_000
-) -> list[list[int]]:
-    """Every lanelet path from an entry (no predecessor) to an exit (no successor), no lanelet twice."""
+# Bounds on enumerating a map's routes: a real map has tens of routes found in thousands of
+# steps; forks that loop back without an exit have exponentially many partial paths.
+MAX_ROUTES = 10_000
+MAX_STEPS = 200_000  # path extensions: about a second of work
+
+
+def enumerate_routes(lanelets: dict[int, Lanelet], entries: Sequence[int] | None = None,
+                     max_routes: int | None = None, max_steps: int | None = None) -> list[list[int]]:
+    """Every lanelet path from an entry (no predecessor) to an exit (no successor), no lanelet
+    twice, depth first in the successors' order.
+
+    Iterative (a chain of any length), and bounded: past `max_routes` routes or `max_steps`
+    path extensions it stops with a MapError saying to list the routes."""
     if entries is None:
         entries = sorted(i for i, la in lanelets.items() if not la.predecessors)
+    max_routes, max_steps = max_routes or MAX_ROUTES, max_steps or MAX_STEPS
+
+    def successors(lid: int) -> list[int]:
+        return [s for s in lanelets[lid].successors if s in lanelets]
+
+    def too_many(what: str) -> MapError:
+        return MapError(f"{what} while enumerating its routes: the lanelet graph is malformed (forks that loop "
+                        "back?) or too large; list the routes in the map's config (routes: [[id, ...], ...])")
+
     paths: list[list[int]] = []
-
-    def walk(path: list[int]) -> None:
-        if len(paths) >= max_routes:
-            raise MapError(f"more than {max_routes} routes: is the lanelet graph malformed?")
-        succ = [s for s in lanelets[path[-1]].successors if s in lanelets]
-        if not succ:
-            paths.append(path)
-            return
-        for s in succ:
-            if s not in path:
-                walk([*path, s])
-
-    for e in entries:
-        walk([e])
+    steps = 0
+    for entry in entries:
+        path, on_path, pending = [entry], {entry}, [iter(successors(entry))]
+        if not successors(entry):
+            paths.append([entry])
+        while pending:
+            nxt = next(pending[-1], None)
+            if nxt is None:  # every successor of the path's last lanelet tried: step back
+                pending.pop()
+                on_path.discard(path.pop())
+                continue
+            if nxt in on_path:
+                continue
+            steps += 1
+            if steps > max_steps:
+                raise too_many(f"more than {max_steps:,} steps and {len(paths)} routes")
+            if not successors(nxt):
+                paths.append([*path, nxt])
+                if len(paths) > max_routes:
+                    raise too_many(f"more than {max_routes:,} routes")
+                continue
+            path.append(nxt)
+            on_path.add(nxt)
+            pending.append(iter(successors(nxt)))
     return paths
