@@ -25,10 +25,10 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
-from sigmarl.report import bootstrap as bs
-from sigmarl.report.build import build_report
+from sigmarl.report.build import BuildOptions, build_report
 from sigmarl.report.command import publish, staged
 from sigmarl.report.folder import read_results
+from sigmarl.stats import bootstrap as bs
 
 
 def labelled(root: Path, tag: str, models: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -102,8 +102,9 @@ def main(argv: list[str] | None = None) -> int:
         order = [f"{m} {tag}" for m in models for tag, _ in sides]
         out = Path(args.out)
         with staged(out) as staging:  # files appear in `out` only once all are written
-            report = build_report(rows, order, out_dir=staging, ci=True, figures=not args.no_figures,
-                                  curves=curves if len(curves) else None)
+            report = build_report(rows, BuildOptions(out_dir=staging, models=order, ci=True,
+                                                     figures=not args.no_figures),
+                                  curves if len(curves) else None)
             publish(report, staging, out)
     except SigmarlError as e:
         print(f"error: {e}", file=sys.stderr)

@@ -71,15 +71,15 @@ def test_a_bad_interaction_is_refused_at_composition(value, says):
 
 def test_the_report_writes_the_interactions_beside_the_verdicts(tmp_path):
     from sigmarl.metrics import METRIC_COLUMNS
-    from sigmarl.report.build import build_report
+    from sigmarl.report.build import BuildOptions, build_report
 
     rows = _rows(SEEDS)
     for column in METRIC_COLUMNS:  # the report's other tables need every metric column
         if column not in rows:
             rows[column] = 0.0
     rows["CR_AA"], rows["CR_AL"] = rows["CR_total"], 0.0
-    report = build_report(rows, list(SEEDS), out_dir=tmp_path, figures=False, order=list(SEEDS),
-                          baseline="M0-paper", design=DESIGN)
+    report = build_report(rows, BuildOptions(out_dir=tmp_path, models=list(SEEDS), figures=False,
+                                             order=list(SEEDS), baseline="M0-paper", design=DESIGN))
     saved = pd.read_csv(report.paths["interactions"])
     assert saved["difference"].tolist() == pytest.approx([1.5])
     text = (tmp_path / "verdicts.md").read_text()

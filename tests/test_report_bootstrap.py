@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sigmarl.report import bootstrap as bs
 from sigmarl.report.aggregate import cells, summarise
 from sigmarl.report.composite import composite_scores
 from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
+from sigmarl.stats import bootstrap as bs
 
 
 def g(*seeds: list[float]) -> list[np.ndarray]:

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from sigmarl.errors import SigmarlError
-from sigmarl.report import build_report
+from sigmarl.report import BuildOptions, build_report
 from sigmarl.report.aggregate import aggregate
 from sigmarl.report.composite import composite_scores
 from sigmarl.report.paper import paper_values
@@ -148,7 +148,7 @@ def test_csv_round_trips_with_pandas(tmp_path):
 
 
 def test_writes_the_table_files(tmp_path):
-    report = build_report(hand_rows(), out_dir=tmp_path, latex=True, figures=False)
+    report = build_report(hand_rows(), BuildOptions(out_dir=tmp_path, latex=True, figures=False))
     assert {p.name for p in tmp_path.iterdir()} == {
         "table.md", "table.csv", "summary.csv", "composite_scores.csv", "table.tex",
         "improvement.csv", "aggregate_scores.csv", "statistics.md", "verdicts.md", "verdicts.csv",
@@ -170,20 +170,20 @@ def test_writes_the_table_files(tmp_path):
 
 def test_paper_comparison_and_trim_notes(tmp_path):
     report = build_report(
-        hand_rows(), ["M0", "M2"], out_dir=tmp_path, compare_paper=True, figures=False
+        hand_rows(), BuildOptions(out_dir=tmp_path, models=["M0", "M2"], compare_paper=True, figures=False)
     )
     assert "(0.04)" in report.markdown  # paper CPM CR_AA of M0
     assert any("not trimmed" in n for n in report.notes)
     assert any("not comparable" in n for n in report.notes)  # CS over M0, M2 only
     trimmed = build_report(
-        hand_rows(), out_dir=tmp_path, trim=True, compare_paper=True, figures=False
+        hand_rows(), BuildOptions(out_dir=tmp_path, trim=True, compare_paper=True, figures=False)
     )
     assert not any("not trimmed" in n or "not comparable" in n for n in trimmed.notes)
 
 
 def test_all_zero_collisions_still_reports(tmp_path):
     rows = hand_rows().assign(CR_AA=0.0, CR_AL=0.0, CR_total=0.0)
-    report = build_report(rows, out_dir=tmp_path, figures=False)
+    report = build_report(rows, BuildOptions(out_dir=tmp_path, figures=False))
     assert report.table.values.xs("CS", level="metric").isna().all().all()
     assert "composite score undefined: no model collided" in report.markdown
 
@@ -191,7 +191,7 @@ def test_all_zero_collisions_still_reports(tmp_path):
 def test_missing_cell_is_a_dash_and_a_note(tmp_path):
     rows = hand_rows()
     rows = rows[~((rows.model == "M3") & (rows.scenario == "CPM"))]
-    report = build_report(rows, out_dir=tmp_path, figures=False)
+    report = build_report(rows, BuildOptions(out_dir=tmp_path, figures=False))
     assert report.table.values.loc["CPM", "M3"].isna().all()
     assert "CPM: no evaluation rows for M3." in report.notes
     # CS over the other five (means CR 4.4/5, CD 12.5/5, AS 3.0/5): M2 = -0.4/0.88 - 2.5/2.5
@@ -201,7 +201,7 @@ def test_missing_cell_is_a_dash_and_a_note(tmp_path):
 
 def test_empty_input_is_a_clear_error(tmp_path):
     with pytest.raises(SigmarlError, match="no finished evaluation runs"):
-        build_report(hand_rows().iloc[0:0], out_dir=tmp_path)
+        build_report(hand_rows().iloc[0:0], BuildOptions(out_dir=tmp_path))
     assert not any(tmp_path.iterdir())
 
 
@@ -211,7 +211,7 @@ def test_figures(tmp_path):
          for m in MODELS[:2] for s in (0, 1) for i in range(5)]
     )  # fmt: skip
     rows = hand_rows(models=MODELS[:2])
-    report = build_report(rows[rows.scenario.isin(SCENARIOS[:2])], out_dir=tmp_path, curves=curves)
+    report = build_report(rows[rows.scenario.isin(SCENARIOS[:2])], BuildOptions(out_dir=tmp_path), curves)
     for key in ("distributions", "training_curves", "performance_profiles", "training_band", "heatmap"):
         assert report.paths[key].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -220,8 +220,8 @@ def test_paper_numbers_only_beside_the_papers_maps(tmp_path):
     """A procedural map is not Table I's scenario: no paper numbers there, in any format."""
     rows = hand_rows()
     proc = rows[rows.scenario == "Roundabout"].assign(scenario="Proc-Roundabout")
-    report = build_report(pd.concat([rows, proc]), out_dir=tmp_path, compare_paper=True, latex=True,
-                          figures=False)
+    report = build_report(pd.concat([rows, proc]), BuildOptions(out_dir=tmp_path, compare_paper=True, latex=True,
+                                                               figures=False))
     groups, current = {}, None
     for row in body(report.markdown):
         current = row[0] or current  # the group's name is on its first row only

@@ -14,14 +14,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sigmarl.report.sequential import (
+from sigmarl.report.rounds import next_round
+from sigmarl.report.verdicts import Design, decide
+from sigmarl.stats.sequential import (
     boundaries,
-    next_round,
     nominal_levels,
     obrien_fleming_spending,
     sequential_decide,
 )
-from sigmarl.report.verdicts import Design, decide, welch
+from sigmarl.stats.tests import welch
 
 N_START, MAX_SEEDS, ALPHA = 3, 10, 0.05
 SIMS, STEPS = 32, 1200

@@ -3,7 +3,7 @@
 The sweep runs in rounds. The first trains the study's own seeds (`study.seeds`, at least
 two) for every variant. After each round every comparison (variant against the baseline, per
 scenario and decided metric) is decided again under a group-sequential design that keeps the
-error of the repeated looks at the study's level (`sigmarl.report.sequential`), and each
+error of the repeated looks at the study's level (`sigmarl.stats.sequential`), and each
 variant with an undecided comparison gets one more seed (the baseline too, when it needs
 one), up to `study.max_seeds`. It stops when every comparison is decided or the cap is reached.
 
@@ -24,7 +24,7 @@ import pandas as pd
 from sigmarl.errors import SigmarlError
 from sigmarl.readers import read_json
 from sigmarl.report.folder import RunFolder, rows_of
-from sigmarl.report.sequential import key, next_round
+from sigmarl.report.rounds import key, next_round
 from sigmarl.report.verdicts import design_of
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep import launch, plan_sweep

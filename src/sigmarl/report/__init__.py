@@ -4,10 +4,9 @@ Figures live in `sigmarl.report.figures` (imported on use, since matplotlib is s
 """
 
 from sigmarl.report.aggregate import aggregate, trim_collisions
-from sigmarl.report.build import Report, build_report
+from sigmarl.report.build import BuildOptions, Report, build_report
 from sigmarl.report.composite import CompositeScore, composite_score, composite_scores
 from sigmarl.report.paper import paper_table, paper_values
-from sigmarl.report.stats import mean_ci, t_critical
 from sigmarl.report.tables import (
     ResultTable,
     best_mask,
@@ -18,6 +17,7 @@ from sigmarl.report.tables import (
 )
 
 __all__ = [
+    "BuildOptions",
     "CompositeScore",
     "Report",
     "ResultTable",
@@ -27,10 +27,8 @@ __all__ = [
     "build_table",
     "composite_score",
     "composite_scores",
-    "mean_ci",
     "paper_table",
     "paper_values",
-    "t_critical",
     "to_csv_frame",
     "to_latex",
     "to_markdown",

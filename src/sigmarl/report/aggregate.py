@@ -1,7 +1,7 @@
 """Per-simulation evaluation rows -> per (scenario, model, metric) estimates with 95% intervals.
 
 A cell's estimate is the mean over seeds of each seed's mean over simulations; its interval
-is a two-level bootstrap over seeds and their simulations (`sigmarl.report.bootstrap`), so
+is a two-level bootstrap over seeds and their simulations (`sigmarl.stats.bootstrap`), so
 it reflects the seed-to-seed variation that pooled simulations would hide.
 """
 
@@ -17,9 +17,9 @@ import pandas as pd
 from sigmarl.ablation import MODELS
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS, UNITS, scaled
-from sigmarl.report import bootstrap as bs
-from sigmarl.report.stats import mean_ci
 from sigmarl.scenarios import scenario_names
+from sigmarl.stats import bootstrap as bs
+from sigmarl.stats.intervals import mean_ci
 
 SUMMARY_COLUMNS = [
     "scenario", "model", "metric", "unit", "mean", "ci_low", "ci_high", "std", "n", "n_seeds", "seed_std",

@@ -1,8 +1,14 @@
-"""`build_report`: evaluation rows in, table files, composite scores and figures out."""
+"""`build_report`: evaluation rows in, table files, composite scores and figures out.
+
+The report is a list of sections (`SECTIONS`), each a function of one `Draft`: the rows, the
+options and what the earlier sections computed. A section computes its part, writes its
+files through `Draft.write` and leaves what later sections or the caller need on the draft.
+"""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -116,181 +122,232 @@ def _span(counts: pd.Series) -> str:
     return f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}–{counts.max()}"
 
 
-def build_report(
-    rows: pd.DataFrame,
-    models: list[str] | None = None,
-    *,
-    out_dir: Path,
-    trim: bool = False,
-    compare_paper: bool = False,
-    latex: bool = False,
-    curves: pd.DataFrame | None = None,
-    ci: bool = False,
-    figures: bool = True,
-    extra_notes: list[str] | None = None,
-    order: list[str] | None = None,
-    baseline: str | None = None,
-    design: Design | None = None,
-) -> Report:
-    """Aggregate evaluation rows into the paper's Table I and write it to `out_dir`.
+@dataclass(frozen=True)
+class BuildOptions:
+    """What `build_report` draws and where.
+
+    out_dir: the folder the files go into; models: the columns, in order (default: every model
+    in the rows, in `order`); trim: drop each evaluation's best and worst simulation from the
+    collision rates; compare_paper: the paper's numbers in parentheses; ci: 95% bootstrap
+    intervals in the table; order: the study's labels in declared order; baseline: what every
+    other column is compared with (default M0, or the first column); design: the verdicts'
+    study parameters (default: the models against the baseline on CR_total).
+    """
+
+    out_dir: Path
+    models: list[str] | None = None
+    trim: bool = False
+    compare_paper: bool = False
+    latex: bool = False
+    ci: bool = False
+    figures: bool = True
+    extra_notes: tuple[str, ...] = ()
+    order: list[str] | None = None
+    baseline: str | None = None
+    design: Design | None = None
+
+
+@dataclass
+class Draft:
+    """The report as its sections build it."""
+
+    rows: pd.DataFrame
+    options: BuildOptions
+    curves: pd.DataFrame | None
+    models: list[str] = field(default_factory=list)
+    cells: list = field(default_factory=list)
+    summary: pd.DataFrame | None = None
+    composite: pd.DataFrame | None = None
+    table: ResultTable | None = None
+    markdown: str = ""
+    notes: list[str] = field(default_factory=list)
+    improvement: pd.DataFrame | None = None
+    aggregates: pd.DataFrame | None = None
+    statistics: str = ""
+    training: pd.DataFrame | None = None
+    verdicts: pd.DataFrame | None = None
+    verdicts_markdown: str = ""
+    paths: dict[str, Path] = field(default_factory=dict)
+
+    @property
+    def baseline(self) -> str | None:
+        """The compared-with column, if it is one of the report's."""
+        return self.options.baseline if self.options.baseline in self.models else None
+
+    @property
+    def design(self) -> Design:
+        """The study's verdict design over the report's columns (default: against M0, or the first)."""
+        design = self.options.design
+        return replace(design, variants=list(self.models)) if design is not None else \
+            Design(variants=self.models, baseline="M0" if "M0" in self.models else self.models[0])
+
+    def write(self, key: str, name: str, content: str | pd.DataFrame | dict | None) -> None:
+        """One file of the report: Markdown text, a CSV of a frame (fixed float format, so the
+        same rows give the same bytes) or JSON; None or an empty frame writes nothing."""
+        if content is None or (isinstance(content, pd.DataFrame) and not len(content)):
+            return
+        path = self.options.out_dir / name
+        if isinstance(content, pd.DataFrame):
+            content.to_csv(path, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        elif isinstance(content, dict):
+            path.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        else:
+            path.write_text(content, encoding="utf-8")
+        self.paths[key] = path
+
+
+def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame | None = None) -> Report:
+    """Aggregate evaluation rows into the paper's Table I and the report's other files in
+    `options.out_dir`, one section after another (`SECTIONS`).
 
     rows: one per (model, obs, seed, scenario, simulation) with CR_AA, CR_AL, CR_total
-    (fractions of steps), CD (cm) and AS (m/s); models: the columns, in order (default:
-    every model in the rows); trim: drop each evaluation's best and worst simulation from
-    the collision rates; compare_paper: show the paper's numbers in parentheses; ci: show
-    95% bootstrap intervals; curves: (model, iteration, reward[, seed]) for the training plot;
-    order: the study's labels in declared order (the default columns); baseline: what every
-    other column is compared with (default M0, or the first column).
+    (fractions of steps), CD (cm) and AS (m/s); curves: (model, iteration, reward[, seed]) for
+    the training summary, the curve verdicts and the training figures.
 
     Estimates weigh seeds equally and intervals come from a two-level bootstrap (seeds, then
-    simulations; `sigmarl.report.bootstrap`), so the same rows give byte-identical files.
-
-    Writes table.md, table.csv, summary.csv, composite_scores.csv (with CS intervals),
-    improvement.csv and aggregate_scores.csv with statistics.md (`sigmarl.report.scores`),
-    table.tex (latex), training.csv and training.md (curves given; `sigmarl.report.training`),
-    seeds.csv and seeds.md (each model-seed's rates and rewards; `sigmarl.report.seeds`),
-    distributions.png and training_curves.png (figures; curves given).
-
-    Also (`design`: the verdicts' study parameters; default: the models against M0, or the
-    first model, on CR_total): verdicts.md and verdicts.csv (`sigmarl.report.verdicts`),
-    marl_eval.json and marl_eval_intervals.json (`sigmarl.report.marl_eval`), and with figures
-    performance_profiles.png and training_band.png (curves given).
+    simulations; `sigmarl.stats.bootstrap`), so the same rows give byte-identical files.
     """
     rows = validate_rows(rows)
-    models = model_order(rows, models, order)
-    cell_list = cells(rows, models, trim=trim)
-    summary = summarise(cell_list, trim=trim)
-    composite = composite_scores(summary)
-    intervals = composite_intervals(cell_list, composite)
-    composite = composite.merge(intervals.drop(columns="CS"), on=["scenario", "model"], how="left")
-    paper = paper_values(models) if compare_paper else None
+    options = replace(options, out_dir=Path(options.out_dir))
+    draft = Draft(rows, options, curves if curves is not None and len(curves) else None)
+    draft.models = model_order(rows, options.models, options.order)
+    options.out_dir.mkdir(parents=True, exist_ok=True)
+    for section in SECTIONS:
+        section(draft)
+    return Report(draft.markdown, draft.table, draft.summary, draft.composite, draft.improvement,
+                  draft.aggregates, draft.statistics, draft.training, draft.paths, draft.notes,
+                  draft.verdicts, draft.verdicts_markdown)
+
+
+def table_section(d: Draft) -> None:
+    """Table I (table.md, table.csv), its cells (summary.csv) and composite scores with their
+    intervals (composite_scores.csv); the matrix view of the same table (matrix.md)."""
+    o = d.options
+    d.cells = cells(d.rows, d.models, trim=o.trim)
+    d.summary = summarise(d.cells, trim=o.trim)
+    composite = composite_scores(d.summary)
+    intervals = composite_intervals(d.cells, composite)
+    d.composite = composite.merge(intervals.drop(columns="CS"), on=["scenario", "model"], how="left")
+    paper = paper_values(d.models) if o.compare_paper else None
     measured = set(paper.index.get_level_values("scenario")) if paper is not None else set()
-    notes = _notes(summary, composite, models, trim=trim, compare_paper=compare_paper, ci=ci,
-                   paper_scenarios=measured)
-    notes += list(extra_notes or [])
-    table = build_table(summary, composite, models, paper, notes)
-    markdown = to_markdown(table, ci=ci)
-    better = improvement(rows, models, trim=trim, reference=baseline if baseline in models else None)
-    aggregates = aggregate_scores(cell_list, composite, models)
-    statistics = statistics_markdown(better, aggregates, trim=trim)
-
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = {
-        "markdown": out_dir / "table.md",
-        "csv": out_dir / "table.csv",
-        "summary": out_dir / "summary.csv",
-        "composite": out_dir / "composite_scores.csv",
-        "improvement": out_dir / "improvement.csv",
-        "aggregates": out_dir / "aggregate_scores.csv",
-        "statistics": out_dir / "statistics.md",
-    }
-    paths["markdown"].write_text(markdown, encoding="utf-8")
-    paths["matrix"] = out_dir / "matrix.md"
-    paths["matrix"].write_text(matrix_markdown(table, baseline if baseline in models else ("M0" if "M0" in models else None)), encoding="utf-8")
-    paths["statistics"].write_text(statistics, encoding="utf-8")
-    for key, frame in [("csv", to_csv_frame(table)), ("summary", summary), ("composite", composite),
-                       ("improvement", better), ("aggregates", aggregates)]:
-        frame.to_csv(paths[key], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-    training = None
-    if curves is not None and len(curves):
-        training = training_summary(curves, models)
-        last = paper_last_rewards(paper_curves()) if compare_paper else None
-        paths["training"] = out_dir / "training.csv"
-        paths["training_md"] = out_dir / "training.md"
-        training.to_csv(paths["training"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-        paths["training_md"].write_text(training_markdown(training, last), encoding="utf-8")
-    seeds = seed_table(rows, curves, models)
-    paths["seeds"], paths["seeds_md"] = out_dir / "seeds.csv", out_dir / "seeds.md"
-    seeds.to_csv(paths["seeds"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-    paths["seeds_md"].write_text(seeds_markdown(seeds, scenario_order(rows)), encoding="utf-8")
-    if latex:
-        paths["latex"] = out_dir / "table.tex"
-        paths["latex"].write_text(to_latex(table, ci=ci), encoding="utf-8")
-    verdicts, verdicts_md = _write_extras(rows, models, curves, out_dir, paths, trim=trim, design=design)
-    if training is not None:
-        _write_curve_verdicts(rows, models, curves, training, out_dir, paths, design=design,
-                              paper_last=last if compare_paper else None)
-    if figures:
-        # matplotlib is imported only when drawing: table-only reports stay quick to start
-        from sigmarl.report.figures import (
-            plot_distributions,
-            plot_heatmap,
-            plot_performance_profiles,
-            plot_training_band,
-            plot_training_curves,
-        )
-
-        scenarios = scenario_order(rows)
-        paths["distributions"] = plot_distributions(
-            rows[rows["model"].isin(models)], models, scenarios, out_dir / "distributions.png"
-        )
-        if curves is not None and len(curves):
-            paths["training_curves"] = plot_training_curves(
-                curves, out_dir / "training_curves.png", models,
-                paper=paper_curves() if compare_paper else None,
-            )
-            paths["training_band"] = plot_training_band(curves, out_dir / "training_band.png", models)
-        if len(scenarios) > 1 and len(models) > 1:
-            paths["heatmap"] = plot_heatmap(summary, models, scenarios, out_dir / "heatmap.png")
-        paths["performance_profiles"] = plot_performance_profiles(
-            rows[rows["model"].isin(models)], models, scenarios, out_dir / "performance_profiles.png"
-        )
-    return Report(markdown, table, summary, composite, better, aggregates, statistics, training, paths, notes,
-                  verdicts, verdicts_md)
+    d.notes = _notes(d.summary, d.composite, d.models, trim=o.trim, compare_paper=o.compare_paper, ci=o.ci,
+                     paper_scenarios=measured) + list(o.extra_notes)
+    d.table = build_table(d.summary, d.composite, d.models, paper, d.notes)
+    d.markdown = to_markdown(d.table, ci=o.ci)
+    d.write("markdown", "table.md", d.markdown)
+    d.write("csv", "table.csv", to_csv_frame(d.table))
+    d.write("summary", "summary.csv", d.summary)
+    d.write("composite", "composite_scores.csv", d.composite)
+    d.write("matrix", "matrix.md", matrix_markdown(d.table, d.baseline or ("M0" if "M0" in d.models else None)))
 
 
-def _write_curve_verdicts(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame, training: pd.DataFrame,
-                          out_dir: Path, paths: dict[str, Path], *, design: Design | None,
-                          paper_last: dict[str, float] | None) -> None:
-    """When the compared training curves part, and (`paper_last` given) whether the paper's one
+def statistics_section(d: Draft) -> None:
+    """Probability of improvement and aggregate scores over scenarios: statistics.md,
+    improvement.csv and aggregate_scores.csv (`sigmarl.report.scores`)."""
+    d.improvement = improvement(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
+    d.aggregates = aggregate_scores(d.cells, d.composite, d.models)
+    d.statistics = statistics_markdown(d.improvement, d.aggregates, trim=d.options.trim)
+    d.write("improvement", "improvement.csv", d.improvement)
+    d.write("aggregates", "aggregate_scores.csv", d.aggregates)
+    d.write("statistics", "statistics.md", d.statistics)
+
+
+def training_section(d: Draft) -> None:
+    """The training curves' summary (training.csv, training.md), curves given."""
+    if d.curves is None:
+        return
+    d.training = training_summary(d.curves, d.models)
+    last = paper_last_rewards(paper_curves()) if d.options.compare_paper else None
+    d.write("training", "training.csv", d.training)
+    d.write("training_md", "training.md", training_markdown(d.training, last))
+
+
+def seeds_section(d: Draft) -> None:
+    """Each model-seed's rates, deviation, speed and rewards (seeds.csv, seeds.md)."""
+    seeds = seed_table(d.rows, d.curves, d.models)
+    d.write("seeds", "seeds.csv", seeds)
+    d.write("seeds_md", "seeds.md", seeds_markdown(seeds, scenario_order(d.rows)))
+
+
+def latex_section(d: Draft) -> None:
+    if d.options.latex:
+        d.write("latex", "table.tex", to_latex(d.table, ci=d.options.ci))
+
+
+def verdicts_section(d: Draft) -> None:
+    """One verdict per comparison (verdicts.md, verdicts.csv) and, for a factorial study, its
+    interactions (interactions.csv, under the verdicts in verdicts.md)."""
+    design = d.design
+    if design.baseline not in d.models or not design.compared:
+        return
+    measured = trim_collisions(d.rows) if d.options.trim else d.rows
+    d.verdicts = verdict_table(measured, design)
+    d.verdicts_markdown = verdicts_markdown(d.verdicts, design)
+    d.write("verdicts", "verdicts.csv", d.verdicts)
+    interactions = interaction_table(measured, design) if design.interactions else None
+    if interactions is not None and len(interactions):  # a factorial study's question
+        d.verdicts_markdown += "\n" + interactions_markdown(interactions, design)
+        d.write("interactions", "interactions.csv", interactions)
+    d.write("verdicts_md", "verdicts.md", d.verdicts_markdown)
+
+
+def marl_eval_section(d: Draft) -> None:
+    """The rows as marl-eval's JSON (marl_eval.json) and its intervals with the real number of
+    seeds (marl_eval_intervals.json; `sigmarl.report.marl_eval`)."""
+    chosen = d.rows[d.rows["model"].isin(d.models)]
+    d.write("marl_eval", "marl_eval.json", marl_eval_data(chosen, d.models, d.curves))
+    d.write("marl_eval_intervals", "marl_eval_intervals.json", interval_data(chosen, d.models))
+
+
+def curve_verdicts_section(d: Draft) -> None:
+    """When the compared training curves part, and (compare_paper) whether the paper's one
     seed could be one of ours: curve_verdicts.md, curve_verdicts.csv and paper_seeds.csv."""
-    design = _design(design, models)
-    separation = separation_table(curves, design) if design.baseline in models else None
+    if d.training is None:
+        return
+    design = d.design
+    separation = separation_table(d.curves, design) if design.baseline in d.models else None
     seeds = None
-    if paper_last is not None:
-        obs = rows.drop_duplicates("model").set_index("model")["obs"].astype(str)
-        seeds = paper_seed_table(training, paper_last, {m: paper_model_of(obs.get(m, "")) for m in models})
+    if d.options.compare_paper:
+        obs = d.rows.drop_duplicates("model").set_index("model")["obs"].astype(str)
+        seeds = paper_seed_table(d.training, paper_last_rewards(paper_curves()),
+                                 {m: paper_model_of(obs.get(m, "")) for m in d.models})
     text = curve_verdicts_markdown(*(x if x is not None else pd.DataFrame() for x in (separation, seeds)), design)
     if not text:
         return
-    paths["curve_verdicts_md"] = out_dir / "curve_verdicts.md"
-    paths["curve_verdicts_md"].write_text(text, encoding="utf-8")
-    for key, frame in [("curve_verdicts", separation), ("paper_seeds", seeds)]:
-        if frame is not None and len(frame):
-            paths[key] = out_dir / f"{key}.csv"
-            frame.to_csv(paths[key], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    d.write("curve_verdicts_md", "curve_verdicts.md", text)
+    d.write("curve_verdicts", "curve_verdicts.csv", separation)
+    d.write("paper_seeds", "paper_seeds.csv", seeds)
 
 
-def _design(design: Design | None, models: list[str]) -> Design:
-    """The study's verdict design over the report's columns (default: against M0, or the first)."""
-    return replace(design, variants=list(models)) if design is not None else \
-        Design(variants=models, baseline="M0" if "M0" in models else models[0])
+def figures_section(d: Draft) -> None:
+    """distributions.png, performance_profiles.png, heatmap.png (several scenarios and models),
+    and training_curves.png and training_band.png (curves given)."""
+    if not d.options.figures:
+        return
+    # matplotlib is imported only when drawing: table-only reports stay quick to start
+    from sigmarl.report.figures import (
+        plot_distributions,
+        plot_heatmap,
+        plot_performance_profiles,
+        plot_training_band,
+        plot_training_curves,
+    )
+
+    out, models, scenarios = d.options.out_dir, d.models, scenario_order(d.rows)
+    chosen = d.rows[d.rows["model"].isin(models)]
+    d.paths["distributions"] = plot_distributions(chosen, models, scenarios, out / "distributions.png")
+    if d.curves is not None:
+        d.paths["training_curves"] = plot_training_curves(
+            d.curves, out / "training_curves.png", models,
+            paper=paper_curves() if d.options.compare_paper else None)
+        d.paths["training_band"] = plot_training_band(d.curves, out / "training_band.png", models)
+    if len(scenarios) > 1 and len(models) > 1:
+        d.paths["heatmap"] = plot_heatmap(d.summary, models, scenarios, out / "heatmap.png")
+    d.paths["performance_profiles"] = plot_performance_profiles(chosen, models, scenarios,
+                                                                out / "performance_profiles.png")
 
 
-def _write_extras(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | None, out_dir: Path,
-                  paths: dict[str, Path], *, trim: bool, design: Design | None
-                  ) -> tuple[pd.DataFrame | None, str]:
-    """The verdict table (and a factorial study's interactions), and the marl-eval export, beside
-    the report's other files."""
-    design = _design(design, models)
-    verdicts, text = None, ""
-    if design.baseline in models and design.compared:
-        measured = trim_collisions(rows) if trim else rows
-        verdicts = verdict_table(measured, design)
-        text = verdicts_markdown(verdicts, design)
-        paths["verdicts"] = out_dir / "verdicts.csv"
-        verdicts.to_csv(paths["verdicts"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-        interactions = interaction_table(measured, design) if design.interactions else None
-        if interactions is not None and len(interactions):  # a factorial study's question
-            text += "\n" + interactions_markdown(interactions, design)
-            paths["interactions"] = out_dir / "interactions.csv"
-            interactions.to_csv(paths["interactions"], index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-        paths["verdicts_md"] = out_dir / "verdicts.md"
-        paths["verdicts_md"].write_text(text, encoding="utf-8")
-    chosen = rows[rows["model"].isin(models)]
-    for key, name, data in [("marl_eval", "marl_eval.json", marl_eval_data(chosen, models, curves)),
-                            ("marl_eval_intervals", "marl_eval_intervals.json", interval_data(chosen, models))]:
-        paths[key] = out_dir / name
-        paths[key].write_text(json.dumps(data, indent=1, allow_nan=False) + "\n", encoding="utf-8")
-    return verdicts, text
+SECTIONS: list[Callable[[Draft], None]] = [
+    table_section, statistics_section, training_section, seeds_section, latex_section, verdicts_section,
+    marl_eval_section, curve_verdicts_section, figures_section,
+]

@@ -14,7 +14,7 @@ from pathlib import Path
 from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
 from sigmarl.report.aggregate import label_order
-from sigmarl.report.build import Report, build_report
+from sigmarl.report.build import BuildOptions, Report, build_report
 from sigmarl.report.folder import checkpoint_of, read_many, read_results
 from sigmarl.report.verdicts import design_of
 from sigmarl.scenarios import scenario, scenario_names
@@ -87,11 +87,12 @@ def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callab
     if models is None and cfg.study.variants:
         models = _study_labels(rows, list(cfg.study.variants))
     with staged(out_dir) as staging:
-        report = build_report(rows, models, out_dir=staging, trim=options.trim,
-                              compare_paper=options.compare_paper, latex=options.latex, curves=curves,
-                              ci=options.ci, figures=options.figures, extra_notes=list(extra_notes),
-                              order=list(cfg.study.variants) or None, baseline=cfg.study.baseline,
-                              design=design_of(cfg.study, models or sorted(set(rows["model"].astype(str)))))
+        build = BuildOptions(out_dir=staging, models=models, trim=options.trim,
+                             compare_paper=options.compare_paper, latex=options.latex, ci=options.ci,
+                             figures=options.figures, extra_notes=tuple(extra_notes),
+                             order=list(cfg.study.variants) or None, baseline=cfg.study.baseline,
+                             design=design_of(cfg.study, models or sorted(set(rows["model"].astype(str)))))
+        report = build_report(rows, build, curves)
         known = [s for s in report.table.scenarios if s in scenario_names()]  # the maps the rows ran on
         if options.figures:
             _add_maps(report, staging, known)

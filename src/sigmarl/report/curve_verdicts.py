@@ -24,9 +24,11 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.ablation import OBS_FLAGS
-from sigmarl.report.tdist import t_ppf
+from sigmarl.report.format import signed
 from sigmarl.report.training import LAST
-from sigmarl.report.verdicts import Design, _signed, holm, welch
+from sigmarl.report.verdicts import Design
+from sigmarl.stats.intervals import t_critical
+from sigmarl.stats.tests import holm, welch
 
 WINDOW = 25  # iterations per window: the curves are noisy per iteration
 
@@ -114,7 +116,7 @@ def paper_seed_table(summary: pd.DataFrame, paper_last: dict[str, float], paper_
         r = g["reward_last"].to_numpy(float)
         n, mean, paper = len(r), float(r.mean()), float(paper_last[model])
         if n >= 2:
-            half = t_ppf(0.5 + level / 2, n - 1) * float(r.std(ddof=1)) * math.sqrt(1 + 1 / n)
+            half = t_critical(n - 1, level) * float(r.std(ddof=1)) * math.sqrt(1 + 1 / n)
             low, high = mean - half, mean + half
             verdict = "above" if paper > high else "below" if paper < low else "within"
         else:
@@ -169,7 +171,7 @@ def curve_verdicts_markdown(separation: pd.DataFrame, paper_seeds: pd.DataFrame,
 
 def _cell(r: pd.Series) -> str:
     if math.isnan(r["ci_low"]):
-        return f"{_signed(r['difference'])} (n {r['n_variant']}/{r['n_baseline']})"
+        return f"{signed(r['difference'])} (n {r['n_variant']}/{r['n_baseline']})"
     star = "*" if r["verdict"] != "undecided" else ""
-    return f"{_signed(r['difference'])}{star} [{_signed(r['ci_low'])}, {_signed(r['ci_high'])}]"
+    return f"{signed(r['difference'])}{star} [{signed(r['ci_low'])}, {signed(r['ci_high'])}]"
 

@@ -10,9 +10,9 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
 from sigmarl.metrics import BY_NAME, label
-from sigmarl.report import bootstrap as bs
-from sigmarl.report.profiles import scenario_profiles, seed_band
 from sigmarl.report.verdicts import seed_values
+from sigmarl.stats import bootstrap as bs
+from sigmarl.stats.profiles import scenario_profiles, seed_band
 
 DISTRIBUTION_METRICS = {name: (label(name), BY_NAME[name].scale) for name in ("CR_total", "CD", "AS")}
 

@@ -22,33 +22,16 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import shown_unit
-from sigmarl.report.tdist import t_ppf
-from sigmarl.report.verdicts import (
-    Design,
-    Test,
-    _p,
-    _signed,
-    comparisons,
-    holm,
-    margin_unit,
-    p_values,
-)
+from sigmarl.report.format import p_text, signed
+from sigmarl.report.verdicts import Design, comparisons, margin_unit
+from sigmarl.stats.intervals import t_critical
+from sigmarl.stats.tests import contrast, holm
 
 COLUMNS = [
     "scenario", "metric", "interaction", "x", "x_baseline", "y", "y_baseline", "x_difference",
     "y_difference", "difference", "ci_low", "ci_high", "margin", "p_difference", "p_difference_holm",
     "p_equivalence", "p_equivalence_holm", "verdict",
 ]  # fmt: skip
-
-
-def contrast(x: Test, y: Test, margin: float) -> Test:
-    """The test of (x's difference) - (y's difference), the four groups independent."""
-    d = x.difference - y.difference
-    se = math.hypot(x.se, y.se)
-    if not math.isfinite(se) or se == 0:  # a side with one seed, or no noise at all
-        return Test(x.n_variant, y.n_variant, x.difference, y.difference, d, se, math.nan, math.nan, math.nan)
-    df = se**4 / (x.se**4 / x.df + y.se**4 / y.df)
-    return Test(x.n_variant, y.n_variant, x.difference, y.difference, d, se, df, *p_values(d, se, df, margin))
 
 
 def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
@@ -62,7 +45,7 @@ def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
             margin = design.margins[metric]
             t = contrast(tx, tests[(scenario, metric, y)], margin)
             se_ok = math.isfinite(t.df)
-            half = t_ppf(0.5 + (1 - design.alpha) / 2, t.df) * t.se if se_ok else math.nan
+            half = t_critical(t.df, 1 - design.alpha) * t.se if se_ok else math.nan
             records.append({
                 "scenario": scenario, "metric": metric, "interaction": name,
                 "x": x, "x_baseline": design.baseline_of(x), "y": y, "y_baseline": design.baseline_of(y),
@@ -97,10 +80,10 @@ def interactions_markdown(table: pd.DataFrame, design: Design) -> str:
             else str(r["verdict"])
         lines.append(
             f"| {r['scenario']} | {r['metric']} ({unit}) | {r['interaction']} | {r['x']} − {r['x_baseline']}: "
-            f"{_signed(r['x_difference'])} | {r['y']} − {r['y_baseline']}: {_signed(r['y_difference'])} | "
-            f"{_signed(r['difference'])} [{_signed(r['ci_low'])}, {_signed(r['ci_high'])}] | "
-            f"{_p(r['p_difference'])} ({_p(r['p_difference_holm'])}) | {_p(r['p_equivalence'])} "
-            f"({_p(r['p_equivalence_holm'])}) | {verdict} |"
+            f"{signed(r['x_difference'])} | {r['y']} − {r['y_baseline']}: {signed(r['y_difference'])} | "
+            f"{signed(r['difference'])} [{signed(r['ci_low'])}, {signed(r['ci_high'])}] | "
+            f"{p_text(r['p_difference'])} ({p_text(r['p_difference_holm'])}) | {p_text(r['p_equivalence'])} "
+            f"({p_text(r['p_equivalence_holm'])}) | {verdict} |"
         )
     lines += [
         "",

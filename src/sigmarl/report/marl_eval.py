@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import METRIC_COLUMNS, ROW_UNITS
-from sigmarl.report.tdist import t_ppf
+from sigmarl.stats.intervals import t_critical
 
 ENVIRONMENT = "sigmarl"
 
@@ -70,7 +70,7 @@ def interval_data(rows: pd.DataFrame, models: list[str], level: float = 0.95) ->
                 v = means[m].to_numpy(float)
                 v = v[np.isfinite(v)]
                 n = len(v)
-                z = t_ppf(0.5 + level / 2, n - 1) if n > 1 else None
+                z = t_critical(n - 1, level) if n > 1 else None
                 entry[m] = {"mean": float(v.mean()) if n else None, "n": n, "z": z,
                             "half_width": z * float(v.std(ddof=1)) / math.sqrt(n) if z else None}
             out["tasks"].setdefault(str(scenario), {})[model] = entry

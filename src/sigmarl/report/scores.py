@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import COMPOSITE, METRIC_COLUMNS
-from sigmarl.report import bootstrap as bs
 from sigmarl.report.aggregate import Cell, scenario_order, trim_collisions, validate_rows
+from sigmarl.stats import bootstrap as bs
 
 _SCORE_SIGNS = COMPOSITE
 _COLS = [METRIC_COLUMNS.index(m) for m in _SCORE_SIGNS]

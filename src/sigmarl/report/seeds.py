@@ -11,12 +11,12 @@ from __future__ import annotations
 import math
 
 import pandas as pd
+from scipy import stats
 
 from sigmarl.metrics import label, scaled
 from sigmarl.report.aggregate import model_order, scenario_order
-from sigmarl.report.tdist import t_sf
+from sigmarl.report.format import p_text, signed
 from sigmarl.report.training import LAST
-from sigmarl.report.verdicts import _p
 
 RATES = ["CR_total", "CR_AA", "CR_AL"]
 MIN_SEEDS = 5  # fewer seeds than this give no useful rank correlation
@@ -95,7 +95,7 @@ def spearman(x: pd.Series, y: pd.Series) -> tuple[float, float]:
     if abs(rho) >= 1 - 1e-12:  # a perfect ranking (up to rounding): no t to compute
         return math.copysign(1.0, rho), 0.0
     t = rho * math.sqrt((n - 2) / (1 - rho * rho))
-    return rho, min(1.0, 2 * t_sf(abs(t), n - 2))
+    return rho, min(1.0, 2 * float(stats.t.sf(abs(t), n - 2)))
 
 
 def reward_collisions(table: pd.DataFrame, scenarios: list[str], min_seeds: int = MIN_SEEDS) -> pd.DataFrame:
@@ -155,13 +155,9 @@ def seeds_markdown(table: pd.DataFrame, scenarios: list[str]) -> str:
             "|---|---:|---|",
         ]
         for r in correlation.to_dict("records"):
-            cells = " / ".join(f"{_signed(r[f'rho_{i}'])} ({_p(r[f'p_{i}'])})" for i in range(len(WINDOW_ENDS)))
+            cells = " / ".join(f"{signed(r[f'rho_{i}'], 2)} ({p_text(r[f'p_{i}'])})" for i in range(len(WINDOW_ENDS)))
             lines.append(f"| {r['models']} | {r['seeds']} | {cells} |")
     return "\n".join(lines) + "\n"
-
-
-def _signed(x: float) -> str:
-    return "–" if pd.isna(x) else f"{x:+.2f}"
 
 
 def _num(x: float) -> str:

@@ -37,9 +37,10 @@ import pandas as pd
 
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import BY_NAME, METRICS, shown_unit
-from sigmarl.report.power import seeds_for_difference, seeds_for_equivalence
-from sigmarl.report.tdist import t_cdf, t_ppf, t_sf
-from sigmarl.report.variance import Components, components
+from sigmarl.report.format import p_text, seeds_text, signed
+from sigmarl.stats.power import seeds_for_difference, seeds_for_equivalence
+from sigmarl.stats.tests import Test, holm, verdict, welch
+from sigmarl.stats.variance import Components, components
 
 DEFAULT_MARGINS = {m.name: m.margin for m in METRICS}
 
@@ -105,66 +106,6 @@ def design_of(study, variants: Sequence[str]) -> Design:
                   margins={**DEFAULT_MARGINS, **dict(study.margins)}, max_seeds=int(study.max_seeds))
 
 
-@dataclass(frozen=True)
-class Test:
-    """Welch's tests of one comparison, from the two sides' seed means."""
-
-    n_variant: int
-    n_baseline: int
-    variant_mean: float
-    baseline_mean: float
-    difference: float
-    se: float
-    df: float
-    p_difference: float
-    p_equivalence: float
-
-    def interval(self, level: float) -> tuple[float, float]:
-        if not math.isfinite(self.se):
-            return math.nan, math.nan
-        if self.se == 0:
-            return self.difference, self.difference
-        half = t_ppf(0.5 + level / 2, self.df) * self.se
-        return self.difference - half, self.difference + half
-
-
-def welch(variant: np.ndarray, baseline: np.ndarray, margin: float) -> Test:
-    """Welch's two-sided test of no difference and TOST within +-margin on seed means."""
-    a, b = np.asarray(variant, float), np.asarray(baseline, float)
-    na, nb = len(a), len(b)
-    d = float(a.mean() - b.mean()) if na and nb else math.nan
-    means = (float(a.mean()) if na else math.nan, float(b.mean()) if nb else math.nan)
-    if na < 2 or nb < 2:
-        return Test(na, nb, *means, d, math.nan, math.nan, math.nan, math.nan)
-    va, vb = a.var(ddof=1) / na, b.var(ddof=1) / nb
-    se = math.sqrt(va + vb)
-    if se == 0:  # every seed of both sides gave the same value: no noise to test against
-        return Test(na, nb, *means, d, 0.0, math.inf, float(d == 0), float(abs(d) >= margin))
-    df = (va + vb) ** 2 / (va**2 / (na - 1) + vb**2 / (nb - 1))
-    return Test(na, nb, *means, d, se, df, *p_values(d, se, df, margin))
-
-
-def p_values(d: float, se: float, df: float, margin: float) -> tuple[float, float]:
-    """Two-sided p of d = 0, and TOST's p of |d| >= margin, for a t statistic on df."""
-    p_diff = min(1.0, 2 * t_sf(abs(d) / se, df))
-    p_eq = max(t_sf((d + margin) / se, df), t_cdf((d - margin) / se, df))
-    return p_diff, p_eq
-
-
-def holm(p_values: Sequence[float]) -> np.ndarray:
-    """Holm's step-down adjusted p-values: the i-th smallest of m is multiplied by m - i + 1,
-    made non-decreasing along the order and capped at 1. NaN p-values count as 1 in the
-    family (a comparison that could not be tested still is one) and stay NaN."""
-    p = np.asarray(p_values, float)
-    filled = np.where(np.isnan(p), 1.0, p)
-    m = len(p)
-    order = np.argsort(filled, kind="stable")
-    scaled = filled[order] * (m - np.arange(m))
-    adjusted = np.empty(m)
-    adjusted[order] = np.minimum(1.0, np.maximum.accumulate(scaled))
-    return np.where(np.isnan(p), math.nan, adjusted)
-
-
 def seed_values(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str], list[np.ndarray]]:
     """(model, scenario) -> per seed (ascending) its finite values of `metric`, in the table's units."""
     scale = BY_NAME[metric].scale
@@ -220,17 +161,6 @@ def decide(
     return verdicts, p_diff, p_eq
 
 
-def verdict(test: Test, sign: int, p_difference: float, p_equivalence: float, level_difference: float,
-            level_equivalence: float) -> str:
-    """The verdict of one comparison from its adjusted p-values: a difference first (better or
-    worse by the metric's direction `sign`), then equivalence, else undecided."""
-    if p_difference <= level_difference:
-        return "better" if test.difference * sign > 0 else "worse"
-    if p_equivalence <= level_equivalence:
-        return "equivalent"
-    return "undecided"
-
-
 def plan_seeds(c: Comparison, margin: float, alpha_diff: float, alpha_eq: float, power: float
                ) -> tuple[int | None, str]:
     """Seeds per side the easier decision needs (None: none within reach), and which one."""
@@ -256,7 +186,7 @@ def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
     open_diff = m - sum(v in ("better", "worse") for v in verdicts)
     open_eq = m - sum(v == "equivalent" for v in verdicts)
     records = []
-    for c, verdict, pd_, pe in zip(comps, verdicts, p_diff, p_eq, strict=True):
+    for c, decided, pd_, pe in zip(comps, verdicts, p_diff, p_eq, strict=True):
         margin = design.margins[c.metric]
         lo, hi = c.test.interval(1 - design.alpha)
         needed, kind = plan_seeds(c, margin, design.alpha / max(open_diff, 1), design.alpha / max(open_eq, 1),
@@ -268,7 +198,7 @@ def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
             "variant_mean": c.test.variant_mean, "baseline_mean": c.test.baseline_mean,
             "difference": c.test.difference, "ci_low": lo, "ci_high": hi, "margin": margin,
             "p_difference": c.test.p_difference, "p_difference_holm": pd_,
-            "p_equivalence": c.test.p_equivalence, "p_equivalence_holm": pe, "verdict": verdict,
+            "p_equivalence": c.test.p_equivalence, "p_equivalence_holm": pe, "verdict": decided,
             "seeds_needed": needed, "seeds_needed_unadjusted": unadjusted, "decision_planned": kind,
             "seed_share_variant": c.variant_components.seed_share,
             "seed_share_baseline": c.baseline_components.seed_share,
@@ -291,20 +221,6 @@ def verdict_label(row: pd.Series) -> str:
     return str(row["verdict"])
 
 
-def _p(p: float) -> str:
-    if not math.isfinite(p):
-        return "–"
-    return "<0.001" if p < 0.001 else f"{p:.3f}"
-
-
-def _signed(x: float) -> str:
-    return f"{x:+.3f}" if math.isfinite(x) else "–"
-
-
-def _needed(n) -> str:
-    return "–" if pd.isna(n) else str(int(n))
-
-
 def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
     """The verdict table as Markdown, with the rules it applied in its notes."""
     m = len(table)
@@ -322,12 +238,12 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
     for _, r in table.iterrows():
         unit = shown_unit(r["metric"])
         undecided = r["verdict"] == "undecided"
-        needed = f"{_needed(r['seeds_needed'])} ({_needed(r['seeds_needed_unadjusted'])})" if undecided else "–"
+        needed = f"{seeds_text(r['seeds_needed'])} ({seeds_text(r['seeds_needed_unadjusted'])})" if undecided else "–"
         model = r["variant"] if design.one_baseline else f"{r['variant']} vs {r['baseline']}"
         lines.append(
             f"| {r['scenario']} | {r['metric']} ({unit}) | {model} | {r['n_variant']}/{r['n_baseline']} | "
-            f"{_signed(r['difference'])} [{_signed(r['ci_low'])}, {_signed(r['ci_high'])}] | {_p(r['p_difference'])} "
-            f"({_p(r['p_difference_holm'])}) | {_p(r['p_equivalence'])} ({_p(r['p_equivalence_holm'])}) | "
+            f"{signed(r['difference'])} [{signed(r['ci_low'])}, {signed(r['ci_high'])}] | {p_text(r['p_difference'])} "
+            f"({p_text(r['p_difference_holm'])}) | {p_text(r['p_equivalence'])} ({p_text(r['p_equivalence_holm'])}) | "
             f"{verdict_label(r)} | {needed} |"
         )
     margins = ", ".join(f"{k} ±{design.margins[k]:g} {margin_unit(k)}" for k in design.metrics)
@@ -358,8 +274,8 @@ def plan_text(table: pd.DataFrame, design: Design) -> str:
         share = f"{_share(r['seed_share_variant'])}/{_share(r['seed_share_baseline'])}"
         lines.append(
             f"{r['scenario']:<18}{r['metric']:<10}{r['variant']:<7}{r['n_variant']:>3}/{r['n_baseline']:<3}  "
-            f"{_signed(r['difference']):>10}  {verdict_label(r):<22}{_needed(r['seeds_needed']):>7}"
-            f"{_needed(r['seeds_needed_unadjusted']):>8}  {r['decision_planned'] or '–':<12}{share:>11}"
+            f"{signed(r['difference']):>10}  {verdict_label(r):<22}{seeds_text(r['seeds_needed']):>7}"
+            f"{seeds_text(r['seeds_needed_unadjusted']):>8}  {r['decision_planned'] or '–':<12}{share:>11}"
         )
     lines += [
         "",

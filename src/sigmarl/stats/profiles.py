@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sigmarl.report import bootstrap as bs
+from sigmarl.stats import bootstrap as bs
 
 
 def exceedance(values: np.ndarray, valid: np.ndarray, taus: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Seeds added where they decide something, with the error of repeated looks controlled.
 
-`seeds=auto` runs in rounds: after each round every comparison is decided again, and each
+A study that adds seeds runs in rounds: after each round every comparison is decided again, and each
 variant with an undecided comparison gets one more seed (the baseline too, when it has no
 more seeds than such a variant would). Looking again after every round and stopping at
 the first significant result would inflate the error rates (with 8 looks at 5 % each, a
@@ -24,7 +24,7 @@ The design, declared before the first look:
   and count as rejected in their own family and as not rejected in the other;
 - at the last look (n = max_seeds) what is still undecided stays undecided.
 
-`tests/test_sequential.py` simulates the procedure on data whose truth is set and checks
+tests/test_sequential.py simulates the procedure on data whose truth is set and checks
 that it calls equal variants different, and variants further apart than the margin
 equivalent, at most 5 % of the time, while the same rounds without the correction do not.
 """
@@ -32,17 +32,13 @@ equivalent, at most 5 % of the time, while the same rounds without the correctio
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
-import pandas as pd
+from scipy import stats
 
-from sigmarl.errors import SigmarlError
-from sigmarl.metrics import BY_NAME
-from sigmarl.report.tdist import normal_cdf, normal_ppf
-from sigmarl.report.verdicts import Design, Test, comparisons, holm, verdict
+from sigmarl.stats.tests import Test, holm, verdict
 
 _GRID = 2001  # points of the z grid
 _SPAN = 10.0  # the grid covers +-_SPAN standard deviations of B(1)
@@ -53,8 +49,8 @@ def obrien_fleming_spending(t: float, alpha: float, sides: int = 2) -> float:
     per side, at one-sided level a = alpha / sides, 2 - 2 Phi(z_(1 - a/2) / sqrt(t))."""
     if t <= 0:
         return 0.0
-    z = normal_ppf(1 - alpha / sides / 2)
-    return float(sides * 2 * normal_cdf(-z / math.sqrt(min(t, 1.0))))
+    z = float(stats.norm.ppf(1 - alpha / sides / 2))
+    return float(sides * 2 * stats.norm.cdf(-z / math.sqrt(min(t, 1.0))))
 
 
 @lru_cache(maxsize=64)
@@ -120,7 +116,7 @@ def nominal_levels(n_start: int, max_seeds: int, alpha: float) -> dict[int, tupl
     fractions = look_fractions(n_start, max_seeds)
     two = boundaries(fractions, alpha, 2)
     one = boundaries(fractions, alpha, 1)
-    return {n: (float(2 * normal_cdf(-a)), float(normal_cdf(-b)))
+    return {n: (float(2 * stats.norm.cdf(-a)), float(stats.norm.cdf(-b)))
             for n, a, b in zip(range(n_start, max_seeds + 1), two, one, strict=True)}
 
 
@@ -132,7 +128,7 @@ def sequential_decide(
     max_seeds: int,
     alpha: float,
 ) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
-    """Verdicts at this look: the rules of `verdicts.decide` with each comparison's nominal
+    """Verdicts at this look: the fixed design's rules (Holm, then `tests.verdict`) with each comparison's nominal
     levels at its look (n = the smaller of its sides' seeds), earlier verdicts kept.
 
     Returns verdicts, the Holm-adjusted difference and equivalence p-values (NaN for the
@@ -150,80 +146,3 @@ def sequential_decide(
     decided_before = np.array([p is not None for p in prev])
     return (verdicts, np.where(decided_before, math.nan, adj_diff), np.where(decided_before, math.nan, adj_eq),
             np.array([a[0] for a in at]))
-
-
-@dataclass
-class Round:
-    """What one look decided and what the next round trains."""
-
-    verdicts: pd.DataFrame  # scenario, metric, variant, n_variant, n_baseline, difference, p's, level, verdict
-    add: dict[str, int]  # variant (or baseline) -> seeds to add before the next look
-    reasons: list[str]  # one line per decision and per seed added, to record with the run
-    done: bool  # nothing left to add: all decided, or the cap reached
-
-
-def key(scenario: str, metric: str, variant: str) -> str:
-    return f"{scenario}/{metric}/{variant}"
-
-
-def next_round(
-    rows: pd.DataFrame,
-    design: Design,
-    n_start: int,
-    previous: Mapping[str, str] | None = None,
-) -> Round:
-    """Decide every comparison at this look and say which seeds the next round adds.
-
-    rows: the evaluation rows so far (model, seed, scenario, simulation, metric columns);
-    n_start: the seeds per side at the first look (declared once, before it, and passed
-    unchanged at every look); previous: `key(...)` -> verdict of the earlier looks (decided
-    comparisons keep theirs). Pure: the caller records the reasons and trains the seeds.
-    """
-    if not 2 <= n_start <= design.max_seeds:
-        raise SigmarlError(f"the first look needs 2 to max_seeds ({design.max_seeds}) seeds per model, got {n_start}")
-    previous = dict(previous or {})
-    comps = comparisons(rows, design)
-    tests = [c.test for c in comps]
-    directions = [BY_NAME[c.metric].direction for c in comps]
-    keys = [key(c.scenario, c.metric, c.variant) for c in comps]
-    verdicts, p_diff, p_eq, levels = sequential_decide(
-        tests, directions, [previous.get(k) for k in keys], n_start, design.max_seeds, design.alpha
-    )
-    frame = pd.DataFrame({
-        "scenario": [c.scenario for c in comps], "metric": [c.metric for c in comps],
-        "variant": [c.variant for c in comps], "n_variant": [t.n_variant for t in tests],
-        "n_baseline": [t.n_baseline for t in tests], "difference": [t.difference for t in tests],
-        "p_difference": [t.p_difference for t in tests], "p_difference_holm": p_diff,
-        "p_equivalence": [t.p_equivalence for t in tests], "p_equivalence_holm": p_eq,
-        "nominal_level": levels, "verdict": verdicts,
-    })
-    reasons = []
-    seeds = rows.groupby("model")["seed"].nunique().to_dict()
-    add: dict[str, int] = {}
-    for k, c, v, t, p in zip(keys, comps, verdicts, tests, previous_list(previous, keys), strict=True):
-        where = f"{c.variant} vs {design.baseline_of(c.variant)}, {c.scenario}, {c.metric}"
-        if p:
-            continue
-        if v != "undecided":
-            reasons.append(f"{where}: {v} at {t.n_variant}/{t.n_baseline} seeds "
-                           f"(difference {t.difference:+.4g}, Holm p {p_diff[keys.index(k)]:.3g}, "
-                           f"equivalence p {p_eq[keys.index(k)]:.3g}, nominal level {levels[keys.index(k)]:.3g})")
-        elif seeds.get(c.variant, 0) >= design.max_seeds:
-            reasons.append(f"{where}: undecided at the cap of {design.max_seeds} seeds")
-        else:
-            add[c.variant] = 1
-    for variant in list(add):
-        reasons.append(f"{variant}: one more seed ({seeds.get(variant, 0) + 1}), for its undecided "
-                       f"comparison(s): {', '.join(c.scenario + '/' + c.metric for c, v in zip(comps, verdicts, strict=True) if c.variant == variant and v == 'undecided')}")
-    for base in dict.fromkeys(design.baseline_of(v) for v in list(add)):
-        # a baseline keeps pace with the variants compared with it
-        if base not in add and seeds.get(base, 0) <= max(seeds.get(v, 0) for v in add
-                                                          if design.baseline_of(v) == base) < design.max_seeds:
-            add[base] = 1
-            reasons.append(f"{base}: one more seed ({seeds.get(base, 0) + 1}), as the baseline "
-                           "of the undecided comparisons")
-    return Round(frame, add, reasons, done=not add)
-
-
-def previous_list(previous: Mapping[str, str], keys: Sequence[str]) -> list[str | None]:
-    return [previous.get(k) if previous.get(k) not in (None, "undecided") else None for k in keys]

@@ -16,9 +16,20 @@ from __future__ import annotations
 
 import math
 
-from sigmarl.report.tdist import nct_cdf, t_ppf
+from scipy import stats
 
 MAX_N = 100_000  # beyond this the answer is "practically never"
+
+
+def _cdf(t: float, df: float, nc: float) -> float:
+    """P(T <= t) of the noncentral t; scipy answers NaN far in a tail, where it is ~0 or ~1."""
+    p = float(stats.norm.cdf(t - nc)) if math.isinf(df) else float(stats.nct.cdf(t, df, nc))
+    return p if math.isfinite(p) else float(t > nc)
+
+
+def _sf(t: float, df: float, nc: float) -> float:
+    p = float(stats.norm.sf(t - nc)) if math.isinf(df) else float(stats.nct.sf(t, df, nc))
+    return p if math.isfinite(p) else float(t < nc)
 
 
 def _df(n: int, va: float, vb: float) -> float:
@@ -30,11 +41,11 @@ def _df(n: int, va: float, vb: float) -> float:
 def difference_power(n: int, delta: float, va: float, vb: float, alpha: float) -> float:
     se = math.sqrt((va + vb) / n)
     df = _df(n, va, vb)
-    crit = t_ppf(1 - alpha / 2, df) if math.isfinite(df) else 0.0
+    crit = float(stats.t.ppf(1 - alpha / 2, df)) if math.isfinite(df) else 0.0
     nc = abs(delta) / se if se > 0 else math.inf
     if math.isinf(nc):
         return 1.0 if delta else 0.0
-    return (1 - nct_cdf(crit, df, nc)) + nct_cdf(-crit, df, nc)
+    return _sf(crit, df, nc) + _cdf(-crit, df, nc)
 
 
 def equivalence_power(n: int, delta: float, va: float, vb: float, margin: float, alpha: float) -> float:
@@ -44,9 +55,9 @@ def equivalence_power(n: int, delta: float, va: float, vb: float, margin: float,
     if se == 0:
         return 1.0
     df = _df(n, va, vb)
-    crit = t_ppf(1 - alpha, df)
-    upper = 1 - nct_cdf(crit, df, (delta + margin) / se)  # rejects "delta <= -margin"
-    lower = nct_cdf(-crit, df, (delta - margin) / se)  # rejects "delta >= margin"
+    crit = float(stats.t.ppf(1 - alpha, df))
+    upper = _sf(crit, df, (delta + margin) / se)  # rejects "delta <= -margin"
+    lower = _cdf(-crit, df, (delta - margin) / se)  # rejects "delta >= margin"
     return max(0.0, upper + lower - 1)
 
 
