@@ -92,10 +92,10 @@ def test_animation_runs_on_the_commands_device_not_the_checkpoints(tmp_path):
 def test_the_activation_choices_are_the_networks():
     from typing import get_args
 
-    from sigmarl.training.networks import _ACTIVATIONS
+    from sigmarl.training.networks import ACTIVATIONS
     from sigmarl.validate import Activation
 
-    assert set(get_args(Activation)) == set(_ACTIVATIONS)
+    assert set(get_args(Activation)) == set(ACTIVATIONS)
 
 
 def test_more_agents_than_the_map_can_hold_are_refused_before_the_env_is_built():

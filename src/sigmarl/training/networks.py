@@ -27,7 +27,7 @@ LOC, SCALE = ("agents", "loc"), ("agents", "scale")
 VALUE = ("agents", "state_value")
 
 # the choices of network.activation (sigmarl.validate.Activation, checked at composition)
-_ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
+ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 
 
 def make_actor(
@@ -53,7 +53,7 @@ def make_actor(
         device=device,
         depth=len(net.hidden),
         num_cells=list(net.hidden),
-        activation_class=_ACTIVATIONS[net.activation],
+        activation_class=ACTIVATIONS[net.activation],
     )
     # scale = softplus shifted so that a zero input gives 1, floored at scale_floor
     params = NormalParamExtractor(scale_mapping=f"biased_softplus_1.0_{net.scale_floor}")
@@ -89,7 +89,7 @@ def make_critic(
         device=device,
         depth=len(net.hidden),
         num_cells=list(net.hidden),
-        activation_class=_ACTIVATIONS[net.activation],
+        activation_class=ACTIVATIONS[net.activation],
     )
     return TensorDictModule(mlp, in_keys=[OBS], out_keys=[VALUE])
 
@@ -102,7 +102,7 @@ def plain_forward(net: MultiAgentMLP) -> Callable[[torch.Tensor], torch.Tensor]:
     for name, module in net._empty_net.named_children():
         if isinstance(module, nn.Linear):
             layers.append((net.params[name, "weight"], net.params[name, "bias"]))
-        elif isinstance(module, tuple(_ACTIVATIONS.values())):
+        elif isinstance(module, tuple(ACTIVATIONS.values())):
             layers.append(module)
         else:
             return net

@@ -14,7 +14,7 @@ import torch
 from torch import nn
 from torchrl.modules import MultiAgentMLP
 
-from sigmarl.training.networks import _ACTIVATIONS
+from sigmarl.training.networks import ACTIVATIONS
 
 
 class StackedMLP(nn.Module):
@@ -34,7 +34,7 @@ class StackedMLP(nn.Module):
                 for kind in ("weight", "bias"):
                     params.append(nn.Parameter(torch.stack([n.params[name, kind].detach() for n in nets]).clone()))
                 self.layers.append((len(params) - 2, len(params) - 1))
-            elif isinstance(module, tuple(_ACTIVATIONS.values())):
+            elif isinstance(module, tuple(ACTIVATIONS.values())):
                 self.layers.append(module)
             else:
                 raise ValueError(f"a seed block cannot stack a {type(module).__name__}")
