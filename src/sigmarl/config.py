@@ -29,6 +29,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from sigmarl.ablation import model_label
 from sigmarl.errors import SigmarlError
+from sigmarl.reward_config import RewardConfig
 from sigmarl.scenarios import PAPER_SCENARIOS
 
 
@@ -114,6 +115,8 @@ class EnvConfig:
     """Training spawns on non-loop routes end at this fraction of the route's length."""
     spawn_margin_m: float = 0.25
     """Test spawns keep this many m from either end of a route."""
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    """The reward's weights and shaping scales (the paper's by default)."""
 
 
 @dataclass

@@ -20,6 +20,7 @@ from sigmarl.config import Config, MapConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import check_label
 from sigmarl.metrics import metric
+from sigmarl.reward_config import check_reward
 from sigmarl.tracking.tracker import tracker_class
 
 MapKind = Literal["cpm", "intersection", "on_ramp", "roundabout", "osm"]
@@ -87,6 +88,7 @@ def check(cfg: Config) -> Config:
     _positive("env", cfg.env, ("spawn_start_m", "spawn_margin_m"), strict=False)
     if not 0 < cfg.env.spawn_end_fraction <= 1:
         raise SigmarlError(f"env.spawn_end_fraction must be in (0, 1], got {cfg.env.spawn_end_fraction}")
+    check_reward(cfg.env.reward)
     choice("network.activation", cfg.network.activation, Activation)
     if not cfg.network.hidden or min(cfg.network.hidden) < 1:
         raise SigmarlError(f"network.hidden must be positive layer sizes, got {cfg.network.hidden}")

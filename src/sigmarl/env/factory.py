@@ -178,6 +178,7 @@ def _settings(cfg: Config, road_map: RoadMap, n_agents: int, mode: str, seed: in
         spawn_margin_m=float(env_cfg.spawn_margin_m),
         seed=seed,  # VmasEnv keeps its own `seed` argument for itself
         rules=cfg.rules,
+        reward=cfg.env.reward,
     )
 
 

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import torch
 
 from sigmarl.env.params import DT, REWARD, VEHICLE
+
+if TYPE_CHECKING:
+    from sigmarl.reward_config import RewardConfig
 
 
 def decay(x: torch.Tensor, a: float, b: float) -> torch.Tensor:
@@ -31,22 +35,23 @@ class RewardInputs:
     lane_collision: torch.Tensor  # [E, A] bool
 
 
-def reward_terms(x: RewardInputs) -> dict[str, torch.Tensor]:
-    """Each term of the paper's reward as an [E, A] tensor (before the clamp)."""
-    w = x.pos.new_tensor(REWARD.ref_weights[: x.prev_ref_points.shape[-2]])
+def reward_terms(x: RewardInputs, w: RewardConfig) -> dict[str, torch.Tensor]:
+    """Each term of the reward (`env.reward.*`: the paper's by default) as an [E, A] tensor
+    (before the clamp)."""
+    ref_w = x.pos.new_tensor(REWARD.ref_weights[: x.prev_ref_points.shape[-2]])
     r = x.prev_ref_points - x.prev_pos.unsqueeze(-2)  # [E, A, P, 2]
     step = (x.pos - x.prev_pos).unsqueeze(-2)
-    progress = REWARD.progress * ((step * r).sum(-1) * w).sum(-1) / (VEHICLE.max_speed * DT)
+    progress = w.progress * ((step * r).sum(-1) * ref_w).sum(-1) / (VEHICLE.max_speed * DT)
     v_bar = (x.vel.unsqueeze(-2) * r).sum(-1).mean(-1)
-    speed = REWARD.speed * v_bar / VEHICLE.max_speed
+    speed = w.speed * v_bar / VEHICLE.max_speed
     speed = torch.where(v_bar <= 0, 2 * speed, speed)
-    moving = REWARD.moving * torch.sign(v_bar) * x.vel.norm(dim=-1) / VEHICLE.max_speed
-    near_boundary = REWARD.near_boundary * decay(x.d_boundary, 0.0, REWARD.near_boundary_at)
+    moving = w.moving * torch.sign(v_bar) * x.vel.norm(dim=-1) / VEHICLE.max_speed
+    near_boundary = w.near_boundary * decay(x.d_boundary, 0.0, w.near_boundary_at)
     eye = torch.eye(x.distances.shape[-1], dtype=torch.bool, device=x.distances.device)
-    near = decay(x.distances, *REWARD.near_agent_at).masked_fill(eye, 0.0)
-    near_agents = REWARD.near_agents * near.sum(-1)
-    deviation = REWARD.center_line_deviation * x.d_center / REWARD.deviation_scale
-    steer = REWARD.steering_change * ((x.steering - x.prev_steering).abs() - REWARD.steering_free).clamp(min=0) / REWARD.steering_scale
+    near = decay(x.distances, w.near_agent_full_at, w.near_agent_zero_at).masked_fill(eye, 0.0)
+    near_agents = w.near_agents * near.sum(-1)
+    deviation = w.center_line_deviation * x.d_center / w.deviation_scale
+    steer = w.steering_change * ((x.steering - x.prev_steering).abs() - w.steering_free).clamp(min=0) / w.steering_scale
     return {
         "progress": progress,
         "speed": speed,
@@ -55,8 +60,8 @@ def reward_terms(x: RewardInputs) -> dict[str, torch.Tensor]:
         "near_agents": near_agents,
         "center_line_deviation": deviation,
         "steering_change": steer,
-        "agent_collision": REWARD.agent_collision * x.agent_collision.to(x.pos.dtype),
-        "lane_collision": REWARD.lane_collision * x.lane_collision.to(x.pos.dtype),
+        "agent_collision": w.agent_collision * x.agent_collision.to(x.pos.dtype),
+        "lane_collision": w.lane_collision * x.lane_collision.to(x.pos.dtype),
     }
 
 

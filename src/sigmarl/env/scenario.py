@@ -38,6 +38,7 @@ from sigmarl.maps.model import RoadMap
 
 if TYPE_CHECKING:
     from sigmarl.config import ObsConfig, RulesConfig
+    from sigmarl.reward_config import RewardConfig
 
 LENGTH, WIDTH = VEHICLE.length, VEHICLE.width
 MAX_SPEED, MAX_STEER = VEHICLE.max_speed, VEHICLE.max_steering
@@ -65,6 +66,7 @@ class ScenarioSettings:
     spawn_margin_m: float
     seed: int  # the spawn and noise generators' seed
     rules: RulesConfig  # the paper's rules switched on (none: ours)
+    reward: RewardConfig  # the reward's weights and shaping scales (env.reward.*)
     # a seed block's seeds, seed k driving environments [k E/S, (k+1) E/S) (`env.streams`);
     # empty: one seed, `seed`
     seeds: tuple[int, ...] = ()
@@ -172,6 +174,7 @@ class TrafficScenario(BaseScenario):
     def _init_rules(self, settings: ScenarioSettings) -> None:
         """What the paper's rules (`paper_rules`) change, decided once here, not per step."""
         rules = self.rules = settings.rules
+        self.reward_weights = settings.reward
         self.command_limit = paper.COMMAND_LIMIT if rules.drag_dynamics else MAX_SPEED
         self.obs_world = paper.test_world(self.road_map) if rules.test_world_size and not self.train else WORLD_SIZE
         self.obs_speed_scale = paper.speed_scale(rules)
@@ -506,8 +509,7 @@ class TrafficScenario(BaseScenario):
                     distances=self.distances, d_center=self.geo.d_center if self.d_line is None else self.d_line,
                     steering=steering, prev_steering=prev_steering,
                     agent_collision=hit_agent, lane_collision=hit_lane,
-                )
-            )
+                ), self.reward_weights)
             self.rew = total_reward(self.terms)
         self._record_step_end()
         exited = self._past_exit()
