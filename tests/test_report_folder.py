@@ -82,7 +82,7 @@ def test_unevaluated_runs_are_named_and_left_out(tmp_path, capsys):
     (source / "M4" / "seed1" / "evaluation_rows.csv").unlink()
     assert report(tmp_path, "out", "--no-figures", source=source) == 0
     out = capsys.readouterr().out
-    assert "M4/seed1 has no evaluation_rows.csv" in out
+    assert "M4/seed1: not evaluated yet, training unfinished (no final.pt): left out" in out
     summary = pd.read_csv(tmp_path / "out" / "summary.csv")
     assert set(summary.loc[summary["model"] == "M4", "n_seeds"]) == {1}
 

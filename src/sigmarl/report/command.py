@@ -15,7 +15,8 @@ from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
 from sigmarl.report.aggregate import label_order
 from sigmarl.report.build import BuildOptions, Report, build_report
-from sigmarl.report.folder import checkpoint_of, read_many, read_results
+from sigmarl.report.coverage import belongs, check, left_out
+from sigmarl.report.folder import checkpoint_of, read_many, read_results, run_folders
 from sigmarl.report.verdicts import design_of
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, open_tracker, records
@@ -32,6 +33,7 @@ class ReportOptions:
     ci: bool = False
     figures: bool = True
     animation_steps: int = 0  # > 0: one GIF per scenario of the baseline driving
+    partial: bool = False  # report what is there when a run failed or a variant has no rows
 
 
 def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions = ReportOptions()) -> Report:
@@ -45,11 +47,17 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     experiment = cfg.tracking.experiment
     tracker = open_tracker(cfg)  # checked before any work
     client = connect(cfg, write=False)  # the rows are read from MLflow whichever tracker logs
-    rows = records.load_evaluation_rows(client, experiment)
+    folders, where = _study_folders(cfg)
+    try:
+        rows = records.load_evaluation_rows(client, experiment)
+    except SigmarlError as e:  # no rows at all: say what became of the study's runs
+        missing = left_out(list(cfg.study.variants), set(), folders, where, declared=False)
+        raise SigmarlError(f"{e}; " + "; ".join(map(str, missing)) if missing else str(e)) from e
+    notes = _coverage(rows, cfg, options, folders, where)
     curves = records.load_training_curves(client, experiment) if options.figures else None
     out_dir = out_dir or Path("reports") / experiment
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
-                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options)
+                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options, notes)
     tracker.log_report(report.composite, report.paths.values(), {
         "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
     })
@@ -70,9 +78,12 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     root = roots[0]
     out_dir = out_dir or Path("reports") / (root.resolve().name if len(roots) == 1 else cfg.study.name)
     curves = results.curves if len(results.curves) else None  # read anyway: training.md needs them
+    folders = [(r.label, r.seed, r.path) for r in results.runs]
+    # the folders' runs without rows are in the notes already (read_results): only variants never run added
+    notes = _coverage(results.rows, cfg, options, folders, ", ".join(map(str, roots)), runs_noted=True)
     tracker = open_tracker(cfg)  # checked before any work
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
-                    options, extra_notes=results.notes)
+                    options, extra_notes=[*results.notes, *notes])
     tracker.log_report(report.composite, report.paths.values(),
                        {"source": ",".join(str(r.resolve()) for r in roots)},
                        source=",".join(str(r) for r in roots))
@@ -100,6 +111,35 @@ def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callab
             report.paths.update(_animations(baseline_checkpoint(), cfg, staging, options.animation_steps, known))
         publish(report, staging, out_dir)
     return report
+
+
+def _coverage(rows, cfg: Config, options: ReportOptions, folders, where: str, runs_noted: bool = False) -> list[str]:
+    """Notes of the study's runs the report leaves out; refused in one line where a run failed
+    or a declared variant has no rows (`coverage.check`), unless options.partial. Checked against
+    the study's variants where the rows hold any of them, else against every label present."""
+    present = list(dict.fromkeys(rows["model"].astype(str)))
+    declared = options.models or list(cfg.study.variants)
+    claimed = any(belongs(m, declared) for m in present)
+    variants = declared if claimed else list(dict.fromkeys([*present, *(label for label, _, _ in folders)]))
+    reported = set(zip(rows["model"].astype(str), rows["seed"].astype(int), strict=True))
+    missing = left_out(variants, reported, folders, where, declared=claimed)
+    check(declared if claimed else [], reported, missing, cfg.study.name, options.partial)
+    return [f"Left out: {m}." for m in missing if not runs_noted or m.seed is None]
+
+
+def _study_folders(cfg: Config) -> tuple[list[tuple[str, int, Path]], str]:
+    """(label, seed, path) of every run folder under the study's runs_root (and those its
+    variants set of their own), and where they were looked for."""
+    roots = [Path(cfg.runs_root)] + [Path(o.split("=", 1)[1]) for v in cfg.study.variants.values()
+                                     for o in v if o.startswith("runs_root=")]
+    roots = list(dict.fromkeys(roots))
+    found = []
+    for root in roots:
+        try:
+            found += [(r.label, r.seed, r.path) for r in run_folders(root)]
+        except SigmarlError:  # no folder there, or none inside it
+            pass
+    return found, ", ".join(map(str, roots))
 
 
 def _study_labels(rows, declared: list[str]) -> list[str] | None:

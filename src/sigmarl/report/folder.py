@@ -27,6 +27,7 @@ from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
 from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
+from sigmarl.report.coverage import run_state
 from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
 from sigmarl.scenarios import scenario_names
 
@@ -192,7 +193,7 @@ def read_results(root: Path) -> FolderResults:
     sims: dict[str | None, tuple[int, Path]] = {}  # per evaluation protocol: simulations per scenario
     for run in runs:
         if not Run(run.path).rows_file.is_file():
-            notes.append(f"{run.path} has no {ROWS_FILE} (not evaluated yet): left out")
+            notes.append(f"{run.path}: {run_state(run.path)[0]}: left out")
             continue
         rules = _rules_of(run)
         if rules is not None and rules != RULES_REVISION:
@@ -213,7 +214,8 @@ def read_results(root: Path) -> FolderResults:
         if note:
             notes.append(note)
     if not frames:
-        raise SigmarlError(f"no {ROWS_FILE} under {root}: nothing evaluated to report on")
+        raise SigmarlError(f"no {ROWS_FILE} under {root}: nothing evaluated to report on"
+                           + "".join(f"; {n}" for n in notes))
     rows = pd.concat(frames, ignore_index=True)
     curve_frame = (pd.concat(curves, ignore_index=True) if curves
                    else pd.DataFrame(columns=["model", "seed", "iteration", "reward", "seconds"]))
