@@ -334,7 +334,7 @@ def _add_report(sub) -> argparse.ArgumentParser:
                     help="report what is there when a run failed or a variant of the study has no rows "
                          "(each named in the notes); without it, such a report is refused")
     rp.add_argument("--animations", type=int, nargs="?", const=200, default=0, metavar="STEPS",
-                    help="also one GIF per scenario of M0 driving (default 200 steps)")
+                    help="also one GIF per scenario of the study's baseline driving (default 200 steps)")
     rp.add_argument("--plan", action="store_true",
                     help="with --from: print each comparison's verdict and the seeds a decision needs, nothing else")
     rp.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. study=quick or tracking.experiment=NAME")

@@ -213,4 +213,5 @@ def _animations(path: Path, cfg: Config, out_dir: Path, steps: int, scenarios: l
     # lazy: torch only for --animations
     from sigmarl.evaluation.animation import animate_checkpoint
 
-    return animate_checkpoint(path, scenarios, steps, int(cfg.eval.seed), out_dir, device=cfg.device)
+    return animate_checkpoint(path, scenarios, steps, int(cfg.eval.seed), out_dir, prefix=cfg.study.baseline,
+                              device=cfg.device)
