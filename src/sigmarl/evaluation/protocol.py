@@ -180,5 +180,8 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
     }
     params = {f"eval.{k}": str(v) for k, v in as_dict(cfg.eval).items()}
     params["checkpoint_iteration"] = str(state.get("iteration"))
+    # what the UI groups and compares evaluations by: the variant, what makes it, what trained
+    params.update({"variant": tags["model"], "overrides": " ".join(train_cfg.overrides)[:6000],
+                   "fingerprint": tags["fingerprint"], "obs": tags["obs"], "seed": tags["seed"]})
     run_id = tracker.log_evaluation(rows, tags, params)
     return rows, run_id

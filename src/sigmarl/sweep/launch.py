@@ -9,6 +9,7 @@ import os
 import sys
 import warnings
 from collections.abc import Sequence
+from contextlib import nullcontext
 from pathlib import Path
 
 import hydra
@@ -38,8 +39,8 @@ def launch(plan: SweepPlan) -> int:
     if all(finished(job) for job in plan.jobs):  # answered from the run folders: no launcher, no store
         print("every job of this sweep is already trained and evaluated")
         return summarise(plan)
-    if plan.config is not None:  # the tracking store checked here, before any job starts
-        open_tracker(plan.config)
+    # the tracking store checked here, before any job starts; it keeps the study's record
+    tracker = open_tracker(plan.config) if plan.config is not None else None
     overrides = multirun_overrides(plan, write_plan(plan))
     register_configs()
     # lazy: the jobs' torch only once jobs run; a finished sweep is answered from its run folders
@@ -48,8 +49,9 @@ def launch(plan: SweepPlan) -> int:
     argv = sys.argv
     sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override(), *sweep_owner_override()]
     try:
-        main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
-        main()
+        with tracker.study() if tracker is not None else nullcontext():
+            main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
+            main()
     finally:
         sys.argv = argv
     return summarise(plan)

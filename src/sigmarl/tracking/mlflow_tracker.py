@@ -12,6 +12,7 @@ from pathlib import Path
 from sigmarl.config import Config
 from sigmarl.tracking import records
 from sigmarl.tracking.store import connect, experiment_id
+from sigmarl.tracking.study_run import study_run
 from sigmarl.tracking.tracker import Tracker, TrainingRun
 from sigmarl.tracking.training import MlflowTrainingRun
 
@@ -30,6 +31,9 @@ class MlflowTracker(Tracker):
         if self._experiment_id is None:
             self._experiment_id = experiment_id(self.client, self.experiment, create=True)
         return self._experiment_id
+
+    def study(self):
+        return study_run(self.client, self.cfg)
 
     def training_run(self, run_id: str | None = None, reopen: bool = True) -> TrainingRun:
         return MlflowTrainingRun.open(self.cfg, self.client, run_id, reopen)

@@ -320,6 +320,10 @@ def _user_records(db: Path) -> int | None:
         return None
 
 
+# MLflow 3's UI opens an experiment of this kind on its runs (not on GenAI traces)
+KIND_TAG, KIND = "mlflow.experimentKind", "custom_model_development"
+
+
 def experiment_id(client, name: str, create: bool = False) -> str | None:
     """The experiment's id; created (artifacts beside a SQLite store) if asked, else None."""
     exp = client.get_experiment_by_name(name)
@@ -331,7 +335,8 @@ def experiment_id(client, name: str, create: bool = False) -> str | None:
     from mlflow.exceptions import MlflowException
 
     try:
-        return client.create_experiment(name, artifact_location=artifact_location(client.tracking_uri))
+        return client.create_experiment(name, artifact_location=artifact_location(client.tracking_uri),
+                                        tags={KIND_TAG: KIND})
     except MlflowException:  # another process created it in the meantime
         exp = client.get_experiment_by_name(name)
         if exp is None:

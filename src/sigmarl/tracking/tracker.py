@@ -17,6 +17,7 @@ from __future__ import annotations
 import importlib
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping, Sequence
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -74,6 +75,11 @@ class Tracker(ABC):
 
     def __init__(self, cfg: Config) -> None:
         self.cfg = cfg
+
+    def study(self) -> AbstractContextManager[str | None]:
+        """Around a sweep's jobs: the study's own record, if the tracker keeps one (MLflow: a
+        parent run of its training runs); its id, or None."""
+        return nullcontext()
 
     @abstractmethod
     def training_run(self, run_id: str | None = None, reopen: bool = True) -> TrainingRun:

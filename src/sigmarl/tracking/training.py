@@ -21,6 +21,7 @@ from sigmarl.errors import SigmarlError, raise_if_interrupted
 from sigmarl.run import REWARD_COLUMN
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import experiment_id
+from sigmarl.tracking.study_run import describe, parent_of
 from sigmarl.tracking.tracker import TrainingRun
 
 # the metric whose history tells which iterations a training run already holds
@@ -79,6 +80,8 @@ class MlflowTrainingRun(TrainingRun):
             if commit := git_commit():
                 tags["git_commit"] = commit
                 tags["mlflow.source.git.commit"] = commit
+            describe(client, exp_id, None)  # an experiment made before its kind was set
+            tags.update(parent_of(client, exp_id, cfg.study.name))  # under the sweep's study run
             run_name = f"{tags['model']}-seed{cfg.seed}"
             run = client.create_run(exp_id, run_name=run_name, tags=tags)
         except SigmarlError:
