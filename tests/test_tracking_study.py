@@ -66,8 +66,13 @@ def test_a_sweep_nests_training_and_evaluation_under_its_study(tmp_path, monkeyp
     trainings = {r.data.tags["model"]: r for r in by_kind["training"]}
     assert set(trainings) == {"MAPPO", "IPPO"}
     assert {r.data.tags["mlflow.parentRunId"] for r in trainings.values()} == {study.info.run_id}
+    assert "report" not in by_kind  # a sweep logs none; `sigmarl report` nests its own under the study run
     for evaluation in by_kind["evaluation"]:
         params, variant = evaluation.data.params, evaluation.data.tags["model"]
         assert evaluation.data.tags["mlflow.parentRunId"] == trainings[variant].info.run_id
         assert params["variant"] == variant and params["fingerprint"] == trainings[variant].data.tags["fingerprint"]
         assert params["overrides"] == {"MAPPO": "obs=full", "IPPO": "obs=full network.centralised_critic=false"}[variant]
+    assert main(["report", "study=critic", "study.scenarios=[Intersection]", f"tracking.tracking_uri={uri}",
+                 f"runs_root={tmp_path}/runs", "--no-figures", "--out", str(tmp_path / "report")]) == 0
+    (report,) = client.search_runs([exp], filter_string="tags.kind = 'report'")
+    assert report.data.tags["mlflow.parentRunId"] == study.info.run_id

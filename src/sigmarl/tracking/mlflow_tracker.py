@@ -12,7 +12,7 @@ from pathlib import Path
 from sigmarl.config import Config
 from sigmarl.tracking import records
 from sigmarl.tracking.store import connect, experiment_id
-from sigmarl.tracking.study_run import study_run
+from sigmarl.tracking.study_run import parent_of, study_run
 from sigmarl.tracking.tracker import Tracker, TrainingRun
 from sigmarl.tracking.training import MlflowTrainingRun
 
@@ -50,4 +50,6 @@ class MlflowTracker(Tracker):
 
     def log_report(self, composite, paths: Iterable[Path], tags: dict[str, str],
                    source: str | None = None) -> str | None:
-        return records.log_report(self.client, self.experiment, composite, paths, tags, source)
+        # under the study's run where a sweep made one: the runs page opens on the study alone
+        study = {"study": self.cfg.study.name, **parent_of(self.client, self.experiment_id(), self.cfg.study.name)}
+        return records.log_report(self.client, self.experiment, composite, paths, {**tags, **study}, source)

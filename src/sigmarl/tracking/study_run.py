@@ -24,7 +24,7 @@ PARENT_TAG = "mlflow.parentRunId"
 def description(study: StudyConfig) -> str:
     """The experiment's description (Markdown): the study, its variants and its baseline."""
     lines = [f"**Study {study.name}**: {len(study.variants)} variant(s), baseline **{study.baseline}**, "
-             f"seeds {list(study.seeds)}, scenarios {', '.join(study.scenarios)}.", ""]
+             f"declared seeds {list(study.seeds)}, scenarios {', '.join(study.scenarios)}.", ""]
     lines += [f"- {label}: `{' '.join(overrides) or '(the config as composed)'}`"
               + (f" (against {study.baselines[label]})" if label in study.baselines else "")
               for label, overrides in study.variants.items()]
