@@ -111,9 +111,11 @@ def _rows(values: dict[str, np.ndarray]) -> pd.DataFrame:
 
 
 def test_next_round_adds_seeds_to_undecided_variants_and_the_baseline():
+    # 7 seeds a side: the permutation test cannot show a difference at the first looks
+    # (its smallest p, 2 / C(2n, n), lies above their nominal levels up to 5 seeds)
     rng = np.random.default_rng(3)
-    base = rng.poisson(5, (3, 8)) / STEPS
-    values = {"M0": base, "M1": base + 0.2, "M2": rng.poisson(5, (3, 8)) / STEPS}
+    base = rng.poisson(5, (7, 8)) / STEPS
+    values = {"M0": base, "M1": base + 0.2, "M2": rng.poisson(5, (7, 8)) / STEPS}
     design = Design(variants=["M0", "M1", "M2"], max_seeds=MAX_SEEDS)
     first = next_round(_rows(values), design, N_START)
     verdicts = dict(zip(first.verdicts["variant"], first.verdicts["verdict"], strict=True))
@@ -132,7 +134,7 @@ def test_next_round_adds_a_seed_to_each_undecided_variants_own_baseline():
     """With its own baselines (M4 against M0, M4-paper against M0-paper), an undecided variant
     brings its own baseline along, and only that one."""
     rng = np.random.default_rng(5)
-    noise = {m: rng.poisson(5, (3, 8)) / STEPS for m in ("M0", "M4", "M0-paper")}
+    noise = {m: rng.poisson(5, (7, 8)) / STEPS for m in ("M0", "M4", "M0-paper")}
     values = {**noise, "M4-paper": noise["M0-paper"] + 0.2}  # decided: worse in every seed
     design = Design(variants=["M0-paper", "M4-paper", "M0", "M4"], baseline="M0-paper",
                     baselines={"M4": "M0"}, max_seeds=MAX_SEEDS)

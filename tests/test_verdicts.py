@@ -118,13 +118,14 @@ def _rows(values: dict[tuple[str, str], list[list[float]]]) -> pd.DataFrame:
 
 
 def test_verdict_rules_and_holm_over_the_study():
+    # 5 seeds a side: a permutation test of 3 against 3 (20 splits) cannot reach p < 0.1
     rows = _rows({
-        ("M0", "A"): [[1.0, 1.2], [1.1, 1.2], [1.0, 1.1]],
-        ("M1", "A"): [[5.0, 5.2], [5.3, 5.1], [4.9, 5.1]],  # far worse in every seed
-        ("M2", "A"): [[1.1, 1.1], [1.2, 1.1], [1.1, 1.0]],  # the same seed means
-        ("M3", "A"): [[1.0, 3.0], [0.2, 0.4], [2.0, 2.6]],  # noisy: nothing can be said
-        ("M0", "B"): [[1.0, 1.2], [1.1, 1.2], [1.0, 1.1]],
-        ("M1", "B"): [[0.5, 0.7], [0.6, 0.8], [0.4, 0.6]],  # better by half a point
+        ("M0", "A"): [[1.0, 1.2], [1.1, 1.2], [1.0, 1.1], [1.2, 1.0], [1.1, 1.1]],
+        ("M1", "A"): [[5.0, 5.2], [5.3, 5.1], [4.9, 5.1], [5.0, 5.0], [5.2, 5.1]],  # far worse in every seed
+        ("M2", "A"): [[1.1, 1.1], [1.2, 1.1], [1.1, 1.0], [1.1, 1.2], [1.0, 1.2]],  # the same seed means
+        ("M3", "A"): [[1.0, 3.0], [0.2, 0.4], [2.0, 2.6], [0.1, 0.5], [3.0, 1.0]],  # noisy: nothing can be said
+        ("M0", "B"): [[1.0, 1.2], [1.1, 1.2], [1.0, 1.1], [1.2, 1.0], [1.1, 1.1]],
+        ("M1", "B"): [[0.5, 0.7], [0.6, 0.8], [0.4, 0.6], [0.6, 0.6], [0.5, 0.6]],  # better by half a point
     })
     design = Design(variants=["M0", "M1", "M2", "M3"], metrics=("CR_total",), margins={"CR_total": 0.3})
     table = verdict_table(rows, design)
@@ -138,7 +139,7 @@ def test_verdict_rules_and_holm_over_the_study():
     undecided = table[table["verdict"] == "undecided"].iloc[0]
     assert undecided["seeds_needed"] >= undecided["seeds_needed_unadjusted"] >= 2
     text = verdicts_markdown(table, design)
-    assert "| A | CR_total (%) | M2 | 3/3 |" in text and "equivalent within ±0.3 pp" in text
+    assert "| A | CR_total (%) | M2 | 5/5 |" in text and "equivalent within ±0.3 pp" in text
     assert "undecided" in plan_text(table, design)
 
 
@@ -156,10 +157,10 @@ def test_each_variant_against_its_own_baseline():
     M0 itself is compared with M0-paper; each difference against scipy's Welch test of the
     pair's own seed means, Holm over the three."""
     seeds = {
-        "M0-paper": [[2.0, 2.2], [2.4, 2.2], [2.1, 2.1]],
-        "M4-paper": [[3.0, 3.2], [3.1, 3.3], [2.9, 3.1]],
-        "M0": [[1.0, 1.2], [1.1, 1.3], [1.0, 1.2]],
-        "M4": [[0.6, 0.8], [0.7, 0.5], [0.6, 0.6]],
+        "M0-paper": [[2.0, 2.2], [2.4, 2.2], [2.1, 2.1], [2.3, 2.1], [2.2, 2.0]],
+        "M4-paper": [[3.0, 3.2], [3.1, 3.3], [2.9, 3.1], [3.2, 3.0], [3.1, 3.1]],
+        "M0": [[1.0, 1.2], [1.1, 1.3], [1.0, 1.2], [1.2, 1.2], [1.1, 1.0]],
+        "M4": [[0.6, 0.8], [0.7, 0.5], [0.6, 0.6], [0.7, 0.7], [0.5, 0.6]],
     }
     rows = _rows({(m, "A"): v for m, v in seeds.items()})
     design = Design(variants=list(seeds), baseline="M0-paper", baselines={"M4": "M0"},
@@ -171,13 +172,17 @@ def test_each_variant_against_its_own_baseline():
     for _, r in table.iterrows():
         a, b = means[r["variant"]], means[r["baseline"]]
         assert r["difference"] == pytest.approx(a.mean() - b.mean())
-        assert r["p_difference"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue, rel=1e-6)
+        assert r["p_welch"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue, rel=1e-6)
+        exact = stats.permutation_test((a, b), lambda x, y, axis: abs(x.mean(axis) - y.mean(axis)),
+                                       permutation_type="independent", alternative="greater",
+                                       n_resamples=np.inf, vectorized=True)
+        assert r["p_difference"] == pytest.approx(exact.pvalue, rel=1e-9)
     assert table["p_difference_holm"].to_numpy() == pytest.approx(holm(table["p_difference"].to_numpy()))
     assert list(table["verdict"]) == ["worse", "better", "better"]
     text = verdicts_markdown(table, design)
     assert text.startswith("Verdicts against each model's baseline")
-    assert "| A | CR_total (%) | M4 vs M0 | 3/3 |" in text
+    assert "| A | CR_total (%) | M4 vs M0 | 5/5 |" in text
     # one baseline for all: the table reads as before
     single = verdicts_markdown(verdict_table(rows, Design(variants=list(seeds), baseline="M0-paper")),
                                Design(variants=list(seeds), baseline="M0-paper"))
-    assert single.startswith("Verdicts against M0-paper") and "| A | CR_total (%) | M4 | 3/3 |" in single
+    assert single.startswith("Verdicts against M0-paper") and "| A | CR_total (%) | M4 | 5/5 |" in single

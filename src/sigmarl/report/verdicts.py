@@ -2,10 +2,12 @@
 
 The unit of replication is the seed: a seed's value is its mean over its simulations (in the
 table's units: collision rates in %, CD in cm, AS in m/s). For each comparison, with d the
-variant's mean of seed means minus the baseline's and se Welch's standard error of d:
+variant's mean of seed means minus the baseline's:
 
-- difference: Welch's two-sided t-test of d = 0;
-- equivalence: two one-sided Welch tests (TOST) of d <= -margin and d >= margin, whose
+- difference: a two-sided permutation test of d = 0 (`sigmarl.stats.permutation`: exact over
+  every split of the pooled seed means when there are at most 200,000, else 20,000 random
+  splits), whose level holds whatever the seeds' shape; Welch's p is reported beside it;
+- equivalence: two one-sided permutation tests (TOST) of d <= -margin and d >= margin, whose
   p-value is the larger of the two;
 - the p-values of each kind are Holm-adjusted over all the study's comparisons (variants x
   scenarios x metrics), so each kind's family-wise error rate is at most alpha.
@@ -38,8 +40,9 @@ import pandas as pd
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import BY_NAME, METRICS, shown_unit
 from sigmarl.report.format import p_text, seeds_text, signed
+from sigmarl.stats.permutation import permutation_test
 from sigmarl.stats.power import seeds_for_difference, seeds_for_equivalence
-from sigmarl.stats.tests import Test, holm, verdict, welch
+from sigmarl.stats.tests import Test, holm, verdict
 from sigmarl.stats.variance import Components, components
 
 DEFAULT_MARGINS = {m.name: m.margin for m in METRICS}
@@ -47,7 +50,7 @@ DEFAULT_MARGINS = {m.name: m.margin for m in METRICS}
 COLUMNS = [
     "scenario", "metric", "variant", "baseline", "n_variant", "n_baseline", "variant_mean",
     "baseline_mean", "difference", "ci_low", "ci_high", "margin", "p_difference",
-    "p_difference_holm", "p_equivalence", "p_equivalence_holm", "verdict", "seeds_needed",
+    "p_difference_holm", "p_welch", "p_equivalence", "p_equivalence_holm", "verdict", "seeds_needed",
     "seeds_needed_unadjusted", "decision_planned", "seed_share_variant", "seed_share_baseline",
 ]  # fmt: skip
 
@@ -141,7 +144,7 @@ def comparisons(rows: pd.DataFrame, design: Design) -> list[Comparison]:
                 mine = values.get((variant, scenario))
                 if not base or not mine:
                     continue
-                test = welch(np.array([g.mean() for g in mine]), np.array([g.mean() for g in base]),
+                test = permutation_test(np.array([g.mean() for g in mine]), np.array([g.mean() for g in base]),
                              design.margins[metric])
                 out.append(Comparison(scenario, metric, variant, test, components(mine), components(base)))
     return out
@@ -198,7 +201,7 @@ def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
             "variant_mean": c.test.variant_mean, "baseline_mean": c.test.baseline_mean,
             "difference": c.test.difference, "ci_low": lo, "ci_high": hi, "margin": margin,
             "p_difference": c.test.p_difference, "p_difference_holm": pd_,
-            "p_equivalence": c.test.p_equivalence, "p_equivalence_holm": pe, "verdict": decided,
+            "p_welch": c.test.p_difference_welch, "p_equivalence": c.test.p_equivalence, "p_equivalence_holm": pe, "verdict": decided,
             "seeds_needed": needed, "seeds_needed_unadjusted": unadjusted, "decision_planned": kind,
             "seed_share_variant": c.variant_components.seed_share,
             "seed_share_baseline": c.baseline_components.seed_share,
@@ -229,9 +232,9 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
         f"Verdicts against {against} (seed means compared; {m} comparisons, Holm-corrected; "
         f"α = {design.alpha:g}):",
         "",
-        "| Scenario | Metric | Model | seeds | difference [95% CI] | p (Holm) | p equiv. (Holm) | verdict "
-        "| seeds needed (unadj.) |",
-        "|---|---|---|---:|---|---:|---:|---|---:|",
+        "| Scenario | Metric | Model | seeds | difference [95% CI] | p (Holm) | Welch p | p equiv. (Holm) "
+        "| verdict | seeds needed (unadj.) |",
+        "|---|---|---|---:|---|---:|---:|---:|---|---:|",
     ]
     if abs(design.alpha - 0.05) > 1e-12:
         lines[2] = lines[2].replace("95% CI", f"{100 * (1 - design.alpha):g}% CI")
@@ -243,15 +246,18 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
         lines.append(
             f"| {r['scenario']} | {r['metric']} ({unit}) | {model} | {r['n_variant']}/{r['n_baseline']} | "
             f"{signed(r['difference'])} [{signed(r['ci_low'])}, {signed(r['ci_high'])}] | {p_text(r['p_difference'])} "
-            f"({p_text(r['p_difference_holm'])}) | {p_text(r['p_equivalence'])} ({p_text(r['p_equivalence_holm'])}) | "
+            f"({p_text(r['p_difference_holm'])}) | {p_text(r['p_welch'])} | {p_text(r['p_equivalence'])} ({p_text(r['p_equivalence_holm'])}) | "
             f"{verdict_label(r)} | {needed} |"
         )
     margins = ", ".join(f"{k} ±{design.margins[k]:g} {margin_unit(k)}" for k in design.metrics)
     lines += [
         "",
         f"seeds: the model's / {against}'s. difference: model minus {against}, in the table's "
-        "units (pp: percentage points), with Welch's t-interval over seed means. better / worse: Welch's two-sided test, Holm-adjusted "
-        f"p ≤ α; equivalent: two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; "
+        "units (pp: percentage points), with Welch's t-interval over seed means. better / worse: a two-sided "
+        "permutation test of the difference of seed means (exact over every split of the pooled seeds up to "
+        "200,000 splits, else 20,000 random ones), Holm-adjusted p ≤ α; Welch p: Welch's t-test, reported, not "
+        "decided on (skewed seeds make it reject too often at few seeds); equivalent: two one-sided permutation "
+        f"tests within the margin ({margins}), Holm-adjusted p ≤ α; "
         "otherwise undecided. seeds needed: seeds per model (and per baseline) for power "
         f"{design.power:g} to reach the easier decision, at Holm's level (at α unadjusted in parentheses), "
         "from the two-level variance of a seed mean (seed-to-seed plus simulations) and the observed "

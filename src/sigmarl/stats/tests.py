@@ -28,6 +28,7 @@ class Test:
     df: float
     p_difference: float
     p_equivalence: float
+    p_difference_welch: float = math.nan  # Welch's p of the difference, whichever test decides
 
     def interval(self, level: float) -> tuple[float, float]:
         """Welch's t-interval of the difference."""
@@ -52,7 +53,8 @@ def welch(variant: np.ndarray, baseline: np.ndarray, margin: float) -> Test:
     if se == 0:  # every value of both sides is the same: no noise to test against
         return Test(na, nb, *means, d, 0.0, math.inf, float(d == 0), float(abs(d) >= margin))
     df = (va + vb) ** 2 / (va**2 / (na - 1) + vb**2 / (nb - 1))
-    return Test(na, nb, *means, d, se, df, *p_values(d, se, df, margin))
+    p_diff, p_eq = p_values(d, se, df, margin)
+    return Test(na, nb, *means, d, se, df, p_diff, p_eq, p_diff)
 
 
 def p_values(d: float, se: float, df: float, margin: float) -> tuple[float, float]:
