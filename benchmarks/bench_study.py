@@ -1,4 +1,4 @@
-"""Study-level benchmarks (issue 5).
+"""Study-level benchmarks.
 
 1. Parallel efficiency: six smoke-budget sweep jobs on the joblib launcher with
    one job per core, against the sum of the same jobs run one at a time (each as

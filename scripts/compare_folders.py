@@ -1,6 +1,6 @@
 """Compare the same model(s) across two results folders: does a variant agree with a baseline?
 
-Made for validating `ppo.precision=bf16` against the fp32 study (the issue's rule: learning
+Made for validating `ppo.precision=bf16` against the fp32 study (the rule: learning
 curves and evaluations over >= 3 seeds must agree within their intervals), and usable for any
 variant run as a sweep of its own:
 

@@ -1,4 +1,4 @@
-"""Procedural test maps (spec §1.2) against shapely, hand-worked geometry and an independent BFS."""
+"""Procedural test maps against shapely, hand-worked geometry and an independent BFS."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from sigmarl.maps.model import RoadMap
 
 STATED_SIZE = {"intersection": (2.9, 3.7), "on_ramp": (4.1, 1.8), "roundabout": (4.0, 2.3)}
 AGENTS = {"intersection": 6, "on_ramp": 8, "roundabout": 8}
-MIN_GAP = 1.2 * math.hypot(0.16, 0.08)  # spawn spacing, spec §6
+MIN_GAP = 1.2 * math.hypot(0.16, 0.08)  # spawn spacing: 1.2 vehicle diagonals
 W = 0.20
 
 
@@ -141,7 +141,7 @@ def test_on_ramp_exit_is_common(maps):
 
 
 def greedy_capacity(m: RoadMap, margin: float = 0.25) -> int:
-    """How many agents fit MIN_GAP apart on the routes' center lines (spawn zone of spec §6)."""
+    """How many agents fit MIN_GAP apart on the routes' center lines (the spawn zone)."""
     pts = []
     for r in m.routes:
         c = r.center[: r.n_points].numpy()

@@ -34,7 +34,7 @@ def test_reproduces_the_papers_composite_scores(scenario):
 
 
 def test_cpm_m0_by_hand():
-    # study.md §5, paper units: means over M0..M5 are 29.06/6 = 4.8433 (CR_total, %),
+    # the paper's Table I, in its units: means over M0..M5 are 29.06/6 = 4.8433 (CR_total, %),
     # 39.65/6 = 6.6083 (CD, paper's cm) and 4.03/6 = 0.67167 (AS):
     # -0.38/4.8433 - 5.18/6.6083 + 0.74/0.67167 = -0.07846 - 0.78386 + 1.10174 = 0.2394.
     cr = dict(zip(MODELS, [0.38, 25.97, 0.58, 0.93, 0.57, 0.63], strict=True))

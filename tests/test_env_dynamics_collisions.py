@@ -1,4 +1,4 @@
-"""Dynamics (spec §2) and collision detection (spec §5), driven through the torchrl env.
+"""Dynamics and collision detection, driven through the torchrl env.
 
 Vehicles 0.16 x 0.08, l_f = l_r = 0.08, dt = 0.05. Maps from conftest: the straight road
 (boundaries y = +-0.075) and the same road 2 m wide (boundaries y = +-1) for free driving.

@@ -1,4 +1,4 @@
-"""Observation (spec §3): sizes of the six presets, every block's value on hand-placed agents,
+"""Observation: sizes of the six presets, every block's value on hand-placed agents,
 neighbour ordering, noise, and torchrl's spec check.
 
 Scene on the straight road of conftest (center line y = 0, boundaries y = +-0.075, center
@@ -113,7 +113,7 @@ def points(i, pts, ego):
 
 
 def expected(i, E=True, V=True, DA=True, DB_=True, DC_=True):
-    """Agent i's observation assembled block by block in the order of spec §3."""
+    """Agent i's observation assembled block by block in the observation's block order (`sigmarl.env.observation`)."""
     x, y, h, v = STATE[i]
     o = []
     if not E:
@@ -159,7 +159,7 @@ def place_scene(drv):
 
 
 def test_hand_expectations_are_self_consistent():
-    """Sanity of the oracle itself: sizes from the spec table and the neighbour order."""
+    """Sanity of the oracle itself: sizes from the table of block sizes and the neighbour order."""
     for name, (size, flags) in PRESETS.items():
         assert expected(0, **flags).numel() == size, name
     for i, nb in NEIGHBOURS.items():

@@ -1,4 +1,4 @@
-"""Episodes, resets and initial states (spec §6), bad input, determinism.
+"""Episodes, resets and initial states, bad input, determinism.
 
 Straight road of conftest: center line y = 0 (points every 0.08 m at x = 0.08 k, last real
 point x = 4.00, then the straight extension), boundaries y = +-0.075.

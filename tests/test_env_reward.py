@@ -1,4 +1,4 @@
-"""Reward (spec §4): each term on a constructed state equals its formula worked out by hand;
+"""Reward: each term on a constructed state equals its formula worked out by hand;
 the total is the clamped sum.
 
 Straight road of conftest (center line y = 0, boundaries +-0.075, center points every 0.08 m),

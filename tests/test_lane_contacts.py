@@ -1,4 +1,4 @@
-"""Lane-boundary contacts are exact against the raw boundary polylines (spec §5).
+"""Lane-boundary contacts are exact against the raw boundary polylines.
 
 The oracle is shapely: the vehicle's box (a polygon) against the route's corridor boundaries
 as the map gives them (LineStrings of their raw vertices). Two kinds of contact that a window
@@ -110,7 +110,7 @@ def test_far_off_center_line_on_a_cpm_two_lane_curve_is_flagged(env_factory):
               for (p, h), r, at in zip(poses, routes, anchors, strict=True)]
     assert sum(oracle) >= 10 and len(oracle) - sum(oracle) >= 5  # CPM has such curves
     assert sc.lane_collision[:, 0].tolist() == oracle
-    # Among them, touching vehicles 0.2 m off their center line (the case the issue found).
+    # Among them, touching vehicles 0.2 m off their center line (the case the old side-of-segment rule got wrong).
     far = (sc.geo.d_center[:, 0] >= 0.19).tolist()
     assert sum(hit and off for hit, off in zip(oracle, far, strict=True)) >= 5
 

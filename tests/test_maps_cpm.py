@@ -1,4 +1,4 @@
-"""The CPM Lab map against the facts of spec §1.1, with shapely as the geometry oracle."""
+"""The CPM Lab map against its known facts (lanelets, neighbours, routes, lengths), with shapely as the geometry oracle."""
 
 from __future__ import annotations
 
@@ -68,7 +68,7 @@ def test_lanelets_width_and_extent(cpm):
 def test_loops_equal_spec(cpm):
     assert [list(r.lanelet_ids) for r in cpm.routes] == [list(x) for x in CPM_LOOPS]
     assert all(r.is_loop for r in cpm.routes)
-    assert cpm.routes[0].length == pytest.approx(14.2, abs=0.05)  # spec: loop 1 is about 14.2 m
+    assert cpm.routes[0].length == pytest.approx(14.2, abs=0.05)  # loop 1 is about 14.2 m long
 
 
 def test_intersection_routes_equal_spec(cpm_inter):

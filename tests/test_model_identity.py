@@ -1,5 +1,5 @@
 """One model identity: the label, run folder, tags and evaluation rows all follow the five
-observation flags (issue: `obs=full obs.ego_view=false` was M1 in training but M0 elsewhere)."""
+observation flags (once, `obs=full obs.ego_view=false` was M1 in training but M0 elsewhere)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""OSM maps (spec §1.3): hand-made files in both dialects, round trips, malformed input."""
+"""OSM maps: hand-made files in both dialects, round trips, malformed input."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The paper's training curves (Fig. 5) shipped with the package, against the figures the
-study spec quotes from them, and drawn beside ours when comparing with the paper."""
+"""The paper's training curves (Fig. 5) shipped with the package, against figures read off
+the paper's Fig. 5, and drawn beside ours when comparing with the paper."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ def test_shipped_curves_hold_the_quoted_figures():
     assert sorted(curves["model"].unique()) == ["M0", "M1", "M2", "M3", "M4", "M5"]
     assert curves.groupby("model")["iteration"].max().eq(250).all()
     last25 = curves[curves["iteration"] > 225].groupby("model")["reward"].mean()
-    # study.md §7: M0 averages 5.30 over its last 25 iterations, M3 2.66, M1 -0.39.
+    # the paper's Fig. 5 curves: M0 averages 5.30 over its last 25 iterations, M3 2.66, M1 -0.39.
     assert last25["M0"] == pytest.approx(5.30, abs=0.005)
     assert last25["M3"] == pytest.approx(2.66, abs=0.005)
     assert last25["M1"] == pytest.approx(-0.39, abs=0.005)

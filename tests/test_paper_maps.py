@@ -1,4 +1,4 @@
-"""The paper's three hand-drawn test maps (spec §1.2) against the measured facts.
+"""The paper's three hand-drawn test maps against the measured facts.
 
 tests/data/paper_test_maps.json is a verbatim copy of the reference facts (center lines,
 successors, evaluated routes with their lengths along the original center lines, agent

@@ -1,4 +1,4 @@
-"""A long study survives kills, races and broken stores: each case of the reliability issue.
+"""A long study survives kills, races and broken stores: each case of docs/reliability.md.
 
 Commands that must die (SIGKILL at a named crash point, SIGTERM) or race each other run the
 real CLI in child processes (forked.py); everything else runs in this process.

@@ -65,7 +65,7 @@ def test_quoted_strings_keep_their_commas():
 
 
 def test_a_sweep_over_any_key_makes_one_variant_per_value(tmp_path):
-    """The issue's own example: each width becomes a column (a label and a run folder)."""
+    """The documented example: each width becomes a column (a label and a run folder)."""
     plan = plan_sweep(["study=quick", "models=[M0]", "network.hidden=[64,64],[128,128]",
                        "tracking.enabled=false", f"runs_root={tmp_path}"], cores=2)
     assert [j.key for j in plan.jobs] == ["M0_hidden-64-64/seed0", "M0_hidden-128-128/seed0"]

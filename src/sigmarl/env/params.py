@@ -50,7 +50,7 @@ NORMALISERS = Normalisers()
 
 @dataclass(frozen=True)
 class RewardWeights:
-    """Spec §4's table: each term's weight and the scales of its shaping functions."""
+    """The paper's reward table: each term's weight and the scales of its shaping functions."""
 
     progress: float = 0.10
     speed: float = 0.05
