@@ -1,13 +1,15 @@
 """The documentation site: `mkdocs build --strict` passes, a broken link fails it, and the built
-site, served on 127.0.0.1 and loaded in headless Chromium, renders its images and tables and
-has a search index. Skips where mkdocs or Chromium is missing."""
+site, served on 127.0.0.1 and loaded in headless Chromium, renders its images and tables (Table I
+fits its column; a wider table scrolls sideways, none is clipped) and has a search index. Skips where mkdocs or Chromium is missing."""
 
 from __future__ import annotations
 
 import functools
+import html
 import http.server
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -111,3 +113,45 @@ def test_the_search_index_exists_and_covers_the_pages(site, served):
     locations = {doc["location"].split("#")[0] for doc in index["docs"]}
     assert {"", "concepts/", "reference/config/", "results/paper-study/"} <= locations
     assert any("seeds=auto" in doc["text"] for doc in index["docs"])
+
+
+# Appended to a page: after Material has wrapped each table in its scrolling container, the
+# widths the browser laid out, written into the DOM for --dump-dom to return.
+_MEASURE = """<script>addEventListener("load", () => setTimeout(() => {
+  const column = document.querySelector("article").getBoundingClientRect();
+  const out = [...document.querySelectorAll("article table")].map(t => {
+    const box = t.closest(".md-typeset__scrollwrap") || t.parentElement;
+    return {head: [...t.rows[0].cells].map(c => c.innerText.trim()), width: t.getBoundingClientRect().width,
+            right: t.getBoundingClientRect().right, column: column.right, box: box.clientWidth,
+            scroll: box.scrollWidth, overflow: getComputedStyle(box).overflowX};
+  });
+  const pre = document.createElement("pre"); pre.id = "measured"; pre.textContent = JSON.stringify(out);
+  document.body.append(pre);
+}, 100));</script>"""
+
+
+def _tables(site: Path, base: str, page: str, width: int = 1280) -> list[dict]:
+    """The laid-out widths of each table of a page in a window `width` px wide."""
+    measured = site / page / "measure.html"
+    measured.write_text((site / page / "index.html").read_text(encoding="utf-8").replace("</body>", _MEASURE + "</body>"),
+                        encoding="utf-8")
+    dom = _browse(f"{base}/{page}/measure.html", f"--window-size={width},1200", "--dump-dom")
+    found = re.search(r'<pre id="measured">(.*?)</pre>', dom, re.S)
+    assert found, dom[-2000:]
+    return json.loads(html.unescape(found.group(1)))
+
+
+def test_table_one_fits_its_column_and_no_table_is_clipped(site, served):
+    """Table I's eight columns fit the content column of a 1280 px window (M5 not cut off on the
+    right), and every table of the pages of wide tables either fits or scrolls sideways in its box."""
+    base, _ = served
+    for page in ("results/paper-study", "results/paper-rules", "results/generalisation", "performance"):
+        tables = _tables(site, base, page)
+        assert tables, page
+        for t in tables:
+            fits = t["scroll"] <= t["box"] + 1 and t["right"] <= t["column"] + 1
+            scrolls = t["overflow"] in ("auto", "scroll") and t["scroll"] >= t["width"] - 1
+            assert fits or scrolls, (page, t)
+        if page == "results/paper-study":
+            one = next(t for t in tables if t["head"] == ["Scenario", "Metric", "M0", "M1", "M2", "M3", "M4", "M5"])
+            assert one["scroll"] <= one["box"] + 1 and one["right"] <= one["column"] + 1, one
