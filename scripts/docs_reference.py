@@ -1,7 +1,8 @@
 """The generated parts of the documentation, made from the code at every `mkdocs build`, so
 they cannot drift: the command line (from sigmarl's argparse parser), every config key (type,
-default and help line, from the config dataclasses) and the files of a run folder (from
-`sigmarl.run`). A page asks for one with a marker line, e.g. `<!-- generated: config -->`.
+default and help line, from the config dataclasses), the shipped options of each config group
+and the scenarios (from the files of conf/ and their opening comments) and the files of a run
+folder (from `sigmarl.run`). A page asks for one with a marker line, e.g. `<!-- generated: config -->`.
 
 mkdocs.yml loads this file as a hook (`on_page_markdown`); `python scripts/docs_reference.py
 NAME` prints one part.
@@ -87,7 +88,43 @@ def run_folder() -> str:
     return "\n".join(rows) + "\n"
 
 
-PARTS = {"cli": cli, "config": config, "run-folder": run_folder}
+def _leading_comment(path: Path) -> str:
+    """A config file's opening comment (after any `# @package` line), as one line."""
+    lines = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if not line.startswith("#"):
+            break
+        if not line.startswith("# @package"):
+            lines.append(line.lstrip("# ").strip())
+    return " ".join(lines)
+
+
+def presets() -> str:
+    """Every shipped option of each config group, from the files of conf/ and their comments."""
+    from sigmarl.paths import conf_dir
+
+    out = []
+    for folder in sorted(p for p in conf_dir().iterdir() if p.is_dir() and p.name not in ("hydra", "scenario")):
+        files = sorted(folder.glob("*.yaml"))
+        out += [f"### `{folder.name}`", "", "| option | what it is |", "|---|---|"]
+        out += [f"| `{folder.name}={f.stem}` | {_cell(_leading_comment(f))} |" for f in files]
+        out.append("")
+    return "\n".join(out)
+
+
+def scenarios() -> str:
+    """Every shipped scenario: its map and agent count, from conf/scenario/; the paper's first."""
+    from sigmarl.paths import conf_dir
+    from sigmarl.readers import read_yaml
+
+    found = [(f, read_yaml(f, "a scenario")) for f in sorted((conf_dir() / "scenario").glob("*.yaml"))]
+    rows = ["| scenario | map | agents | in the paper's Table I | what it is |", "|---|---|---:|---|---|"]
+    rows += [f"| `{f.stem}` | `{s.get('map')}` | {s.get('n_agents')} | {'yes' if s.get('paper') else 'no'} | "
+             f"{_cell(_leading_comment(f))} |" for f, s in sorted(found, key=lambda fs: not fs[1].get("paper"))]
+    return "\n".join(rows) + "\n"
+
+
+PARTS = {"cli": cli, "config": config, "run-folder": run_folder, "presets": presets, "scenarios": scenarios}
 
 
 def expand(markdown: str) -> str:

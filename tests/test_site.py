@@ -45,6 +45,9 @@ def test_the_site_builds_with_every_page(site):
     config = (site / "reference" / "config" / "index.html").read_text(encoding="utf-8")
     assert "<code>ppo.lr</code>" in config and "Learning rate at the first iteration" in config  # generated
     assert "generated:" not in config  # every marker replaced
+    for path in [*(ROOT / "conf" / "study").glob("*.yaml"), *(ROOT / "conf" / "scenario").glob("*.yaml")]:
+        option = f"study={path.stem}" if path.parent.name == "study" else path.stem
+        assert f"<code>{option}</code>" in config, f"{path.name} is not on the configuration page"
     cli = (site / "reference" / "cli" / "index.html").read_text(encoding="utf-8")
     assert "sigmarl sweep" in cli and "--compare-paper" in cli
 
