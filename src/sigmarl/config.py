@@ -31,6 +31,7 @@ from sigmarl.ablation import model_label
 from sigmarl.errors import SigmarlError
 from sigmarl.reward_config import RewardConfig
 from sigmarl.scenarios import PAPER_SCENARIOS
+from sigmarl.vehicle_config import VehicleConfig
 
 
 @dataclass
@@ -117,6 +118,8 @@ class EnvConfig:
     """Test spawns keep this many m from either end of a route."""
     reward: RewardConfig = field(default_factory=RewardConfig)
     """The reward's weights and shaping scales (the paper's by default)."""
+    vehicle: VehicleConfig = field(default_factory=VehicleConfig)
+    """The vehicle's limits (the CPM Lab vehicle's by default)."""
 
 
 @dataclass

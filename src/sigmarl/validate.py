@@ -22,6 +22,7 @@ from sigmarl.identity import check_label
 from sigmarl.metrics import metric
 from sigmarl.reward_config import check_reward
 from sigmarl.tracking.tracker import tracker_class
+from sigmarl.vehicle_config import check_vehicle
 
 MapKind = Literal["cpm", "intersection", "on_ramp", "roundabout", "osm"]
 RouteSet = Literal["intersection", "loops"]  # the CPM map's
@@ -89,6 +90,7 @@ def check(cfg: Config) -> Config:
     if not 0 < cfg.env.spawn_end_fraction <= 1:
         raise SigmarlError(f"env.spawn_end_fraction must be in (0, 1], got {cfg.env.spawn_end_fraction}")
     check_reward(cfg.env.reward)
+    check_vehicle(cfg.env.vehicle)
     choice("network.activation", cfg.network.activation, Activation)
     if not cfg.network.hidden or min(cfg.network.hidden) < 1:
         raise SigmarlError(f"network.hidden must be positive layer sizes, got {cfg.network.hidden}")

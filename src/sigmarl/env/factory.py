@@ -179,6 +179,7 @@ def _settings(cfg: Config, road_map: RoadMap, n_agents: int, mode: str, seed: in
         seed=seed,  # VmasEnv keeps its own `seed` argument for itself
         rules=cfg.rules,
         reward=cfg.env.reward,
+        vehicle=cfg.env.vehicle,
     )
 
 

@@ -39,9 +39,9 @@ from sigmarl.maps.model import RoadMap
 if TYPE_CHECKING:
     from sigmarl.config import ObsConfig, RulesConfig
     from sigmarl.reward_config import RewardConfig
+    from sigmarl.vehicle_config import VehicleConfig
 
 LENGTH, WIDTH = VEHICLE.length, VEHICLE.width
-MAX_SPEED, MAX_STEER = VEHICLE.max_speed, VEHICLE.max_steering
 # Windows of points around an agent's progress index (spacing 0.08 m). Boundary distances and
 # contacts use windows of raw boundary segments instead (RouteBank.boundary_window_table).
 CENTER_WINDOW = (-3, 8)  # progress search: an agent moves at most 0.04 m per step
@@ -67,6 +67,7 @@ class ScenarioSettings:
     seed: int  # the spawn and noise generators' seed
     rules: RulesConfig  # the paper's rules switched on (none: ours)
     reward: RewardConfig  # the reward's weights and shaping scales (env.reward.*)
+    vehicle: VehicleConfig  # the vehicle's limits (env.vehicle.*)
     # a seed block's seeds, seed k driving environments [k E/S, (k+1) E/S) (`env.streams`);
     # empty: one seed, `seed`
     seeds: tuple[int, ...] = ()
@@ -144,7 +145,7 @@ class TrafficScenario(BaseScenario):
                     collide=False,
                     movable=False,  # our own dynamics move the vehicles
                     rotatable=False,
-                    u_range=[self.command_limit, MAX_STEER],
+                    u_range=[self.command_limit, self.max_steer],
                     render_action=False,
                 )
             )
@@ -175,7 +176,8 @@ class TrafficScenario(BaseScenario):
         """What the paper's rules (`paper_rules`) change, decided once here, not per step."""
         rules = self.rules = settings.rules
         self.reward_weights = settings.reward
-        self.command_limit = paper.COMMAND_LIMIT if rules.drag_dynamics else MAX_SPEED
+        self.max_speed, self.max_steer = settings.vehicle.max_speed, settings.vehicle.max_steering
+        self.command_limit = paper.COMMAND_LIMIT if rules.drag_dynamics else self.max_speed
         self.obs_world = paper.test_world(self.road_map) if rules.test_world_size and not self.train else WORLD_SIZE
         self.obs_speed_scale = paper.speed_scale(rules)
         self.raw_geo: paper.RawGeometry | None = None
@@ -263,7 +265,7 @@ class TrafficScenario(BaseScenario):
         # Agents being replaced do not block the sampler: park them far away.
         pos = torch.where(place.unsqueeze(-1), torch.full_like(self.pos, 1e6), self.pos)
         route, idx = sample_spawns(self.bank, pos, place, self.spawn_lo, self.spawn_hi, self.rng)
-        speed = self.rng.rand(self._per_seed(place.shape), self.rng.active(place)) * MAX_SPEED
+        speed = self.rng.rand(self._per_seed(place.shape), self.rng.active(place)) * self.max_speed
         heading = self.bank.heading[route, idx]
         self.route = torch.where(place, route, self.route)
         self.index = torch.where(place, idx, self.index)
@@ -478,7 +480,7 @@ class TrafficScenario(BaseScenario):
         prev_pos, prev_ref = self.pos, self.obs_ref_points
         rules = self.rules
         speed = self.action[..., 0].clamp(-self.command_limit, self.command_limit)
-        steer = self.action[..., 1].clamp(-MAX_STEER, MAX_STEER)
+        steer = self.action[..., 1].clamp(-self.max_steer, self.max_steer)
         self.prev2_steering = self.prev_steering
         self.prev_steering = self.steering
         self.steering = steer

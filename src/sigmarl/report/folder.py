@@ -34,8 +34,8 @@ from sigmarl.scenarios import scenario_names
 _SEED_DIR = re.compile(r"seed(-?\d+)")
 RATES = COLLISION_COLUMNS  # fractions of a simulation's steps
 # Speeds are averaged in float32 and written to 8 significant digits: AS may exceed the top
-# speed by rounding only.
-AS_MAX = VEHICLE.max_speed + 1e-4
+# speed (the vehicle's, env.vehicle.max_speed) by rounding only.
+AS_ROUNDING = 1e-4
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ def _read_csv(path: Path) -> pd.DataFrame:
         raise SigmarlError(f"{path} is not a readable CSV: {str(e).splitlines()[0]}") from e
 
 
-def check_rows(rows: pd.DataFrame, path: Path) -> pd.DataFrame:
+def check_rows(rows: pd.DataFrame, path: Path, top_speed: float = VEHICLE.max_speed) -> pd.DataFrame:
     """`rows` (as read from `path`) if they are evaluation rows a report can trust: the
     columns, known scenario names, whole simulation numbers, finite metrics, rates in [0, 1]
     with CR_total = CR_AA + CR_AL, CD >= 0 and AS in [0, top speed]. A truncated or edited
@@ -110,7 +110,7 @@ def check_rows(rows: pd.DataFrame, path: Path) -> pd.DataFrame:
     parts = metrics["CR_AA"] + metrics["CR_AL"]
     bad("CR_total is not CR_AA + CR_AL", (metrics["CR_total"] - parts).abs() > 1e-6 + 1e-5 * parts)
     bad("CD (cm from the center line) is negative", metrics["CD"] < 0)
-    bad(f"AS (m/s) is not in [0, {VEHICLE.max_speed}]", (metrics["AS"] < 0) | (metrics["AS"] > AS_MAX))
+    bad(f"AS (m/s) is not in [0, {top_speed}]", (metrics["AS"] < 0) | (metrics["AS"] > top_speed + AS_ROUNDING))
     if "simulation" in metrics:
         bad("a simulation is given twice for its scenario", pd.Series(
             pd.DataFrame({"s": scenario, "n": metrics["simulation"]}).duplicated().to_numpy(), index=rows.index))
@@ -138,7 +138,7 @@ def rows_of(run: RunFolder) -> pd.DataFrame:
     """The run's evaluation rows, checked (`check_rows`), and its model and seed checked
     against the folder's names."""
     path = Run(run.path).rows_file
-    rows = check_rows(_read_csv(path), path)
+    rows = check_rows(_read_csv(path), path, _top_speed(run))
     if "seed" not in rows.columns:
         rows.insert(0, "seed", run.seed)
     if "model" not in rows.columns:
@@ -152,6 +152,20 @@ def rows_of(run: RunFolder) -> pd.DataFrame:
     if seeds != {run.seed}:
         raise SigmarlError(f"{path} holds rows of seed {', '.join(map(str, sorted(seeds)))}, not {run.seed}")
     return rows
+
+
+def _top_speed(run: RunFolder) -> float:
+    """The run's vehicle's top speed (env.vehicle.max_speed in its config.yaml; the default
+    where the file is absent or unreadable, as for runs from before the key)."""
+    path = Run(run.path).config_file
+    if not path.is_file():
+        return VEHICLE.max_speed
+    from sigmarl.readers import read_run_config
+
+    try:
+        return float(read_run_config(path).env.vehicle.max_speed)
+    except SigmarlError:
+        return VEHICLE.max_speed
 
 
 def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | None]:
