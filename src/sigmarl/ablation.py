@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from sigmarl.errors import SigmarlError
-from sigmarl.scenarios import scenario, scenario_names
+from sigmarl.scenarios import check_fits, scenario_names
 
 if TYPE_CHECKING:  # sigmarl.config imports this module
     from sigmarl.config import EvalConfig, ObsConfig
@@ -70,7 +70,7 @@ def check_eval(eval_cfg: EvalConfig, scenarios: Sequence[str] | None = None) -> 
     if not names:
         raise SigmarlError(f"eval.scenarios is empty; choose from {', '.join(scenario_names())}")
     for name in names:
-        scenario(name)  # an unknown name or a malformed file ends here, in one line
+        check_fits(name)  # an unknown name, a malformed file, a missing map or too many agents: one line
     if len(set(names)) != len(names):
         raise SigmarlError(f"eval.scenarios names a scenario twice: {', '.join(names)}")
     return names

@@ -123,6 +123,13 @@ def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: i
         raise SigmarlError(f"obs.n_nearest={flags.n_nearest} neighbours cannot be observed among {n_agents} agents")
 
 
+def check_room(road_map: RoadMap, n_agents: int) -> None:
+    """Fail at once, not after building (and stepping) worlds of agents that cannot be placed."""
+    if n_agents > (room := capacity(road_map.routes)):
+        raise SigmarlError(f"could not place {n_agents} agents on map {road_map.name}: its routes hold at "
+                           f"most {room} vehicles {MIN_GAP:.2f} m apart (env.n_agents); use fewer agents")
+
+
 def make_env(
     cfg: Config,
     *,
@@ -150,9 +157,7 @@ def make_env(
     device = device or cfg.device
     validate(n_agents, mode, float(cfg.obs.noise), num_envs, max_steps, cfg.obs)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
-    if n_agents > (room := capacity(road_map.routes)):  # fail at once, not after building it all
-        raise SigmarlError(f"could not place {n_agents} agents on map {road_map.name}: its routes hold at "
-                           f"most {room} vehicles {MIN_GAP:.2f} m apart (env.n_agents); use fewer agents")
+    check_room(road_map, n_agents)
     return TrafficEnv(
         scenario=TrafficScenario(),
         num_envs=num_envs,
@@ -201,6 +206,7 @@ def make_scenario(
     seed = int(seed if seed is not None else cfg.seed)
     validate(n_agents, mode, float(cfg.obs.noise), num_envs, 1, cfg.obs)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
+    check_room(road_map, n_agents)
     scenario = TrafficScenario()
     scenario.env_make_world(num_envs, torch.device(device or cfg.device),
                             settings=_settings(cfg, road_map, n_agents, mode, seed))
