@@ -4,6 +4,8 @@ does for sigmarl's own scenario and map lookups; without the folder the shipped 
 
 from __future__ import annotations
 
+import os
+
 from sigmarl.compose import compose_config
 from sigmarl.paths import CONFIG_PATH, add_user_conf_dir
 
@@ -20,7 +22,7 @@ study:
 
 
 def test_a_users_file_of_a_shipped_name_shadows_it(tmp_path, monkeypatch):
-    monkeypatch.delenv(CONFIG_PATH, raising=False)
+    monkeypatch.setenv(CONFIG_PATH, "")  # recorded, so that teardown removes what add_user_conf_dir sets
     shipped = compose_config(["study=quick"])
     (tmp_path / "study").mkdir()
     (tmp_path / "study" / "quick.yaml").write_text(MINE)
@@ -31,5 +33,5 @@ def test_a_users_file_of_a_shipped_name_shadows_it(tmp_path, monkeypatch):
     assert (mine.study.name, list(mine.study.seeds)) == ("my_quick", [7])
     assert shipped.study.name == "quick"
     assert mine.ppo.iterations == 2  # the rest of ppo comes from the schema's defaults
-    monkeypatch.delenv(CONFIG_PATH)
+    os.environ[CONFIG_PATH] = ""
     assert compose_config(["study=quick"]).study.name == "quick"
