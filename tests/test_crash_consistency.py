@@ -107,6 +107,10 @@ def test_the_store_holds_one_finished_training_and_evaluation_per_job(sweeps) ->
     calm_client, calm_runs = _store(calm)
     client, runs = _store(crashed)
     assert [r for r in runs if r.info.status != "FINISHED"] == []
+    # one study parent run, not one per resumed sweep; the jobs' runs are its children
+    assert [r.data.tags["kind"] for r in runs].count("study") == 1
+    runs = [r for r in runs if r.data.tags["kind"] != "study"]
+    calm_runs = [r for r in calm_runs if r.data.tags["kind"] != "study"]
     for kind in ("training", "evaluation"):
         mine = [r for r in runs if r.data.tags["kind"] == kind]
         assert sorted(r.data.tags["model"] for r in mine) == ["M0", "M4"], kind

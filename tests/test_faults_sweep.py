@@ -40,7 +40,8 @@ def test_f10_a_sweep_measures_lost_or_damaged_rows_again(tmp_path, monkeypatch, 
     client = MlflowClient(f"sqlite:///{tmp_path}/mlflow.db")
     exp = client.get_experiment_by_name("sigmarl-quick")
     kinds = sorted(r.data.tags["kind"] for r in client.search_runs([exp.experiment_id]))
-    assert kinds == ["evaluation"] * 3 + ["training"] * 3  # the rows restored, not logged twice
+    # the rows restored, not logged twice; the study's one parent run not duplicated either
+    assert kinds == ["evaluation"] * 3 + ["study"] + ["training"] * 3
     capsys.readouterr()
     assert _sweep(tmp_path) == 0
     assert "already trained and evaluated" in capsys.readouterr().out
