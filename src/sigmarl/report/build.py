@@ -32,7 +32,7 @@ from sigmarl.report.curve_verdicts import (
     separation_table,
 )
 from sigmarl.report.interactions import interaction_table, interactions_markdown
-from sigmarl.report.marl_eval import interval_data, marl_eval_data
+from sigmarl.report.marl_eval import export_files, interval_data
 from sigmarl.report.paper import paper_curves, paper_values
 from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
 from sigmarl.report.seeds import seed_table, seeds_markdown
@@ -292,10 +292,12 @@ def verdicts_section(d: Draft) -> None:
 
 
 def marl_eval_section(d: Draft) -> None:
-    """The rows as marl-eval's JSON (marl_eval.json) and its intervals with the real number of
+    """The rows as marl-eval's JSON, split by seed set so each file loads whole (marl_eval.json:
+    the seeds common to all models), and its intervals with every seed and the real number of
     seeds (marl_eval_intervals.json; `sigmarl.report.marl_eval`)."""
     chosen = d.rows[d.rows["model"].isin(d.models)]
-    d.write("marl_eval", "marl_eval.json", marl_eval_data(chosen, d.models, d.curves))
+    for name, data in export_files(chosen, d.models, d.curves).items():
+        d.write(name.removesuffix(".json"), name, data)
     d.write("marl_eval_intervals", "marl_eval_intervals.json", interval_data(chosen, d.models))
 
 

@@ -8,6 +8,12 @@ one step ("step_0", its step_count the training iterations when the curves are k
 0) and the absolute metrics, both the per-simulation values in the rows' units (collision
 rates as fractions of steps, CD in cm, AS in m/s).
 
+marl-eval's loader (`create_matrices_for_rliable`) takes every algorithm's run names from the
+first algorithm, so a file in which models have different seeds does not load (KeyError
+'run_3'). `export_files` therefore splits the export: `marl_eval.json` holds the seeds common
+to every model, and each group of models sharing a larger seed set gets its own file,
+`marl_eval_<models>.json` (e.g. `marl_eval_M0_M4.json` with 14 seeds each); each file loads whole.
+
 marl-eval's interval helper takes n = 10 runs and z = 1.96 whatever the data; the sidecar
 `marl_eval_intervals.json` gives, per task, algorithm and metric, the mean over seeds of
 each seed's mean, the real n (seeds) and the Student t quantile z = t_(0.975, n - 1) with
@@ -51,12 +57,41 @@ def marl_eval_data(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame |
     return {ENVIRONMENT: tasks}
 
 
+def seed_groups(rows: pd.DataFrame, models: list[str]) -> dict[str, tuple[list[str], list[int]]]:
+    """File name -> (models, seeds) of the split export: the seeds every model has, then one
+    file per group of models with the same, larger seed set (models in the study's order)."""
+    seeds = {m: tuple(sorted(int(s) for s in rows.loc[rows["model"] == m, "seed"].unique())) for m in models}
+    seeds = {m: s for m, s in seeds.items() if s}
+    if not seeds:
+        return {}
+    common = sorted(set.intersection(*(set(s) for s in seeds.values())))
+    files = {"marl_eval.json": (list(seeds), common)} if common else {}
+    by_set: dict[tuple[int, ...], list[str]] = {}
+    for m, s in seeds.items():
+        by_set.setdefault(s, []).append(m)
+    for s, group in by_set.items():
+        if list(s) != common:
+            files["marl_eval_" + "_".join(group) + ".json"] = (group, list(s))
+    return files
+
+
+def export_files(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | None = None) -> dict[str, dict]:
+    """File name -> marl-eval JSON, each with equal run names for all its algorithms."""
+    out = {}
+    for name, (group, seeds) in seed_groups(rows, models).items():
+        mine = rows[rows["model"].isin(group) & rows["seed"].isin(seeds)]
+        out[name] = marl_eval_data(mine, group, curves)
+    return out
+
+
 def interval_data(rows: pd.DataFrame, models: list[str], level: float = 0.95) -> dict:
     """Per task, algorithm and metric: mean over seeds, n seeds, z = t quantile, half-width."""
     out: dict = {"environment": ENVIRONMENT, "level": level, "units": ROW_UNITS,
                  "note": "mean over seeds of each seed's mean over its simulations; half_width = "
                          "z * sd(seed means) / sqrt(n), z the Student t quantile with n - 1 degrees "
                          "of freedom (marl-eval's own helper assumes n = 10 and z = 1.96)",
+                 "files": {name: {"models": group, "seeds": seeds}
+                           for name, (group, seeds) in seed_groups(rows, models).items()},
                  "tasks": {}}
     metrics = [m for m in METRIC_COLUMNS if m in rows.columns]
     for scenario in dict.fromkeys(rows["scenario"]):
