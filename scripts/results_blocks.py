@@ -39,6 +39,7 @@ PAPER_PAGE, RULES_PAGE, GENERALISATION_PAGE = ("docs/results/paper-study.md", "d
 # marker name -> (report, the report's file, the pages that hold the block)
 BLOCKS = {
     "results-table": ("paper", "table.md", ("README.md", PAPER_PAGE)),
+    "results-findings": ("paper", "findings.md", (PAPER_PAGE,)),
     "results-statistics": ("paper", "statistics.md", (PAPER_PAGE,)),
     "results-verdicts": ("paper", "verdicts.md", (PAPER_PAGE,)),
     "results-seeds": ("paper", "seeds.md", (PAPER_PAGE,)),

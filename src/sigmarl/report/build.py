@@ -31,6 +31,7 @@ from sigmarl.report.curve_verdicts import (
     paper_seed_table,
     separation_table,
 )
+from sigmarl.report.findings import findings_markdown
 from sigmarl.report.interactions import interaction_table, interactions_markdown
 from sigmarl.report.marl_eval import export_files, interval_data
 from sigmarl.report.paper import paper_curves, paper_values
@@ -291,6 +292,14 @@ def verdicts_section(d: Draft) -> None:
     d.write("verdicts_md", "verdicts.md", d.verdicts_markdown)
 
 
+def findings_section(d: Draft) -> None:
+    """What the study found, in sentences of its own figures (findings.md; `report.findings`)."""
+    if d.summary is None or not len(d.summary):
+        return
+    d.write("findings", "findings.md", findings_markdown(d.summary, d.verdicts, d.models, d.baseline,
+                                                        d.design.alpha))
+
+
 def marl_eval_section(d: Draft) -> None:
     """The rows as marl-eval's JSON, split by seed set so each file loads whole (marl_eval.json:
     the seeds common to all models), and its intervals with every seed and the real number of
@@ -351,5 +360,5 @@ def figures_section(d: Draft) -> None:
 
 SECTIONS: list[Callable[[Draft], None]] = [
     table_section, statistics_section, training_section, seeds_section, latex_section, verdicts_section,
-    marl_eval_section, curve_verdicts_section, figures_section,
+    findings_section, marl_eval_section, curve_verdicts_section, figures_section,
 ]

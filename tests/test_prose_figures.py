@@ -1,0 +1,112 @@
+"""No figure of the results' prose is typed by hand where a generated block can hold it.
+
+The README's "What the study found" states only figures of the paper report's `findings.md`
+(held as the `results-findings` block of the paper's-study page, which tests/test_results_blocks.py
+rebuilds byte for byte). On the results pages every decimal figure of the prose is one of the
+page's generated blocks, at its printed precision, or a measurement the report does not make,
+named below with where it comes from. So a new seed that moves a figure fails here until the
+prose says the new one.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+NUMBER = re.compile(r"(?<![\w.])[-−+]?\d+(?:\.\d+)?(?![\w])")
+# decimal figures of a page's prose that no block of it holds: each a measurement outside the
+# report (wall clock, a simulation test, a test on another metric), with its source
+OUTSIDE = {
+    "docs/results/paper-study.md": {
+        "16.4": "training compute of the first 18 model-seeds (their metrics.csv, summed by hand once)",
+        "8.2": "wall clock of the first 18 model-seeds with two jobs at a time",
+        "9.5": "seconds per training iteration with a core to itself (benchmarks/bench_training.py)",
+        "99.7": "variance share of seeds (sigmarl.stats.variance on results/paper-budget)",
+        "2.75": "false-decision rate of tests/test_sequential.py",
+        "7.75": "the same without the sequential correction (tests/test_sequential.py)",
+        "6.75": "the same without the sequential correction (tests/test_sequential.py)",
+        "1.96": "marl-eval's own z",
+        "0.014": "Welch p of CD on CPM (M5 against M0), not a verdict metric",
+        "0.058": "Welch p of CD on the On-Ramp (M5 against M0)",
+        "0.016": "Spearman's p within M4 (seeds.md prints rho only)",
+        "0.257": "composite_scores.csv (a CSV of the report, not a block)",
+        "0.358": "composite_scores.csv",
+        "0.186": "composite_scores.csv",
+        "0.256": "composite_scores.csv",
+    },
+}
+
+
+def _parts(text: str) -> tuple[str, str]:
+    """(the generated blocks, the prose) of a page; code blocks and spans belong to neither."""
+    blocks, prose, inside, code = [], [], None, False
+    for line in text.splitlines():
+        marker = re.match(r"<!-- (/?)([\w-]+) -->$", line)
+        if marker:
+            inside = None if marker.group(1) else marker.group(2)
+        elif line.startswith("```"):
+            code = not code
+        elif inside:
+            blocks.append(line)
+        elif not code:
+            prose.append(line)
+    return "\n".join(blocks), "\n".join(prose)
+
+
+def _numbers(text: str) -> list[str]:
+    text = re.sub(r"`[^`]*`", " ", text)  # commands and paths
+    text = re.sub(r"\]\([^)]*\)", "]", text)  # link targets
+    text = re.sub(r"\b(M\d+|seed\d+|Fig\. \d+|Table I+)\b", " ", text)  # names, not figures
+    return [n.replace("−", "-").lstrip("+-") for n in NUMBER.findall(text)]
+
+
+def _held(figure: str, pool: list[float], exact: bool = False) -> bool:
+    digits = len(figure.split(".")[1]) if "." in figure else 0
+    value = float(figure)
+    if exact:
+        return any(f"{p:.{digits}f}" == figure for p in pool)
+    return any(abs(round(abs(p), digits) - value) < 1e-9 for p in pool)
+
+
+def _page(name: str) -> str:
+    return (ROOT / name).read_text(encoding="utf-8")
+
+
+def _findings() -> str:
+    page = _page("docs/results/paper-study.md")
+    start = page.index("<!-- results-findings -->\n")
+    return page[start:page.index("<!-- /results-findings -->", start)]
+
+
+def test_the_readme_states_only_the_findings_figures() -> None:
+    readme = _page("README.md")
+    section = readme[readme.index("## What the study found"):]
+    section = section[:section.index("<!-- results-table -->")]
+    pool = [float(n) for n in _numbers(_findings())]
+    figures = _numbers(section)
+    assert len(figures) >= 5, "the README's findings paragraph lost its figures"
+    stray = [f for f in figures if not _held(f, pool, exact=True)]
+    assert not stray, f"README's findings state figures that findings.md does not: {stray}"
+
+
+@pytest.mark.parametrize("page", ["docs/results/paper-study.md"])
+def test_decimal_figures_of_a_results_page_come_from_its_blocks(page) -> None:
+    blocks, prose = _parts(_page(page))
+    pool = [float(n) for n in _numbers(blocks)]
+    outside = OUTSIDE.get(page, {})
+    decimals = [f for f in _numbers(prose) if "." in f]
+    stray = sorted({f for f in decimals if f not in outside and not _held(f, pool)})
+    assert not stray, f"{page}'s prose states figures no generated block holds: {stray}"
+    unused = sorted(set(outside) - set(decimals))
+    assert not unused, f"OUTSIDE names figures {page} no longer states: {unused}"
+
+
+def test_the_check_catches_a_drifted_figure() -> None:
+    """The drift the statistics issue found: a probability the prose gave one way, the block
+    another."""
+    blocks, _ = _parts(_page("docs/results/paper-study.md"))
+    pool = [float(n) for n in _numbers(blocks)]
+    assert _held("0.57", pool) and not _held("0.5432", pool)
