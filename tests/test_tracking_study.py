@@ -5,6 +5,15 @@ and the fingerprint as params."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+
 import pytest
 from mlflow import MlflowClient
 
@@ -47,14 +56,31 @@ def test_a_study_run_ends_killed_with_an_interrupted_sweep(tmp_path):
     assert "- NA0: `obs=full env.reward.near_agents=0`" in description(cfg.study)
 
 
+@pytest.fixture(scope="module")
+def critic_store(tmp_path_factory):
+    """A smoke sweep and report of study=critic: (folder, store URI)."""
+    tmp = tmp_path_factory.mktemp("critic")
+    here = os.getcwd()
+    os.chdir(tmp)
+    try:
+        uri = f"sqlite:///{tmp}/mlflow.db"
+        smoke = ["ppo=smoke", "ppo.iterations=1", "ppo.frames_per_iteration=256", "ppo.minibatch_size=128",
+                 "ppo.epochs=1", "network.hidden=[16,16]", "eval.n_sims=2", "eval.steps=20",
+                 "eval.scenarios=[Intersection]", "study.scenarios=[Intersection]"]
+        assert main(["sweep", "study=critic", *smoke, f"tracking.tracking_uri={uri}", f"runs_root={tmp}/runs"]) == 0
+        runs = MlflowClient(tracking_uri=uri).search_runs(
+            [MlflowClient(tracking_uri=uri).get_experiment_by_name("sigmarl-critic").experiment_id])
+        assert not [r for r in runs if r.data.tags["kind"] == "report"]  # a sweep logs none
+        assert main(["report", "study=critic", "study.scenarios=[Intersection]", f"tracking.tracking_uri={uri}",
+                     f"runs_root={tmp}/runs", "--no-figures", "--out", str(tmp / "report")]) == 0
+    finally:
+        os.chdir(here)
+    return tmp, uri
+
+
 @pytest.mark.slow
-def test_a_sweep_nests_training_and_evaluation_under_its_study(tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
-    uri = f"sqlite:///{tmp_path}/mlflow.db"
-    smoke = ["ppo=smoke", "ppo.iterations=1", "ppo.frames_per_iteration=256", "ppo.minibatch_size=128",
-             "ppo.epochs=1", "network.hidden=[16,16]", "eval.n_sims=2", "eval.steps=20",
-             "eval.scenarios=[Intersection]", "study.scenarios=[Intersection]"]
-    assert main(["sweep", "study=critic", *smoke, f"tracking.tracking_uri={uri}", f"runs_root={tmp_path}/runs"]) == 0
+def test_a_sweep_nests_training_and_evaluation_under_its_study(critic_store):
+    _, uri = critic_store
     client = MlflowClient(tracking_uri=uri)
     exp = client.get_experiment_by_name("sigmarl-critic").experiment_id
     runs = client.search_runs([exp])
@@ -66,13 +92,60 @@ def test_a_sweep_nests_training_and_evaluation_under_its_study(tmp_path, monkeyp
     trainings = {r.data.tags["model"]: r for r in by_kind["training"]}
     assert set(trainings) == {"MAPPO", "IPPO"}
     assert {r.data.tags["mlflow.parentRunId"] for r in trainings.values()} == {study.info.run_id}
-    assert "report" not in by_kind  # a sweep logs none; `sigmarl report` nests its own under the study run
     for evaluation in by_kind["evaluation"]:
         params, variant = evaluation.data.params, evaluation.data.tags["model"]
         assert evaluation.data.tags["mlflow.parentRunId"] == trainings[variant].info.run_id
         assert params["variant"] == variant and params["fingerprint"] == trainings[variant].data.tags["fingerprint"]
         assert params["overrides"] == {"MAPPO": "obs=full", "IPPO": "obs=full network.centralised_critic=false"}[variant]
-    assert main(["report", "study=critic", "study.scenarios=[Intersection]", f"tracking.tracking_uri={uri}",
-                 f"runs_root={tmp_path}/runs", "--no-figures", "--out", str(tmp_path / "report")]) == 0
-    (report,) = client.search_runs([exp], filter_string="tags.kind = 'report'")
+    (report,) = by_kind["report"]
     assert report.data.tags["mlflow.parentRunId"] == study.info.run_id
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _dom(chromium: str, url: str) -> str:
+    done = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=20000",
+                           "--dump-dom", url], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout
+
+
+@pytest.mark.slow
+def test_mlflow_ui_lists_the_study_and_compares_its_variants_in_chromium(critic_store):
+    """What a person sees in `mlflow ui` (MLflow's own server and page, in headless Chromium):
+    the runs page holds the study run with the description, and the compare view of the two
+    evaluations shows both variants and their CR_total."""
+    chromium = next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
+    if chromium is None:
+        pytest.skip("no Chromium (apt-get install chromium)")
+    tmp, uri = critic_store
+    client = MlflowClient(tracking_uri=uri)
+    exp = client.get_experiment_by_name("sigmarl-critic").experiment_id
+    evaluations = client.search_runs([exp], filter_string="tags.kind = 'evaluation'")
+    port = _free_port()
+    server = subprocess.Popen([sys.executable, "-m", "mlflow", "server", "--backend-store-uri", uri,
+                               "--host", "127.0.0.1", "--port", str(port), "--workers", "1"],
+                              cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        for _ in range(120):
+            try:
+                if urllib.request.urlopen(f"{base}/health", timeout=2).status == 200:
+                    break
+            except OSError:
+                time.sleep(0.5)
+        else:
+            pytest.fail("mlflow server did not answer on /health")
+        runs_page = _dom(chromium, f"{base}/#/experiments/{exp}/runs?workflowType=machine_learning")
+        assert "study critic" in runs_page and "Study critic" in runs_page and "baseline" in runs_page
+        ids = ",".join(f'"{r.info.run_id}"' for r in evaluations)
+        compare = _dom(chromium, f"{base}/#/compare-runs?runs=[{ids}]&experiments=[\"{exp}\"]")
+        assert "eval-MAPPO-seed0" in compare and "eval-IPPO-seed0" in compare
+        assert "Intersection/CR_total_pct" in compare and "variant" in compare
+    finally:
+        os.killpg(server.pid, signal.SIGTERM)
+        server.wait(timeout=30)
