@@ -35,6 +35,18 @@ def test_sweep_shorthands():
     assert plan.hydra == ["hydra/launcher=slurm"]
 
 
+def test_the_sweeps_hint_keeps_what_finds_its_runs(tmp_path, monkeypatch):
+    from sigmarl.sweep.launch import report_hint
+
+    monkeypatch.delenv("SIGMARL_CONFIG_PATH", raising=False)
+    # ppo=smoke moves the runs into experiment sigmarl-smoke: the report needs it too
+    plan = plan_sweep(["ppo=smoke", "models=[M0]", "eval.n_sims=2", "tracking.enabled=false"])
+    assert report_hint(plan) == "sigmarl report ppo=smoke eval.n_sims=2 tracking.enabled=false"
+    # where only the study and the store choose them, those alone, quoted for the shell
+    plan = plan_sweep(["study=quick", "models=[M0]", "eval.n_sims=2", f"runs_root={tmp_path}/my runs"])
+    assert report_hint(plan) == f"sigmarl report study=quick 'runs_root={tmp_path}/my runs'"
+
+
 def test_sweep_unknown_model():
     with pytest.raises(SigmarlError, match="unknown model"):
         plan_sweep(["models=[M9]"])

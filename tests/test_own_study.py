@@ -5,6 +5,8 @@ order, compared with its declared baseline."""
 
 from __future__ import annotations
 
+import shlex
+
 import pandas as pd
 import pytest
 import yaml
@@ -63,6 +65,12 @@ def test_a_study_from_an_outside_folder_runs_through_sweep_and_report(own, monke
     wide = yaml.safe_load((root / "runs" / "Wide" / "seed0" / "config.yaml").read_text())
     assert wide["fingerprint"] != saved["fingerprint"]
 
+    # the sweep's closing hint finds the runs as typed, without SIGMARL_CONFIG_PATH in the shell
+    hint = [line for line in capsys.readouterr().out.splitlines() if line.startswith("next: ")]
+    words = shlex.split(hint[0].removeprefix("next: "))
+    assert words[:4] == ["sigmarl", "--config-dir", "my_conf", "report"] and "study=tiny" in words, hint
+    monkeypatch.delenv("SIGMARL_CONFIG_PATH")
+    assert main([*words[1:], "--no-figures", "--out", str(root / "hinted")]) == 0
     capsys.readouterr()
     out = root / "report"
     assert main(["--config-dir", str(conf), "report", "study=tiny", store, "--no-figures", "--out", str(out)]) == 0

@@ -3,6 +3,7 @@ reward windows, checked on hand-worked rows and curves and on a results folder."
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import pandas as pd
@@ -50,6 +51,19 @@ def test_seed_table_of_hand_worked_rows_and_curves():
     assert "reward, iterations 51–75 / 126–150 / 226–250" in text  # the one training length there is
     assert "| M0 | 0 | 0.30 / 1.00 | 1.00 | 0.30 / 0.00 | 0.00 / 1.00 | 1.75 / 1.00 | 0.50–0.65 | 63.00 / 138.00 / 238.00 |" in text
     assert "| M4 | 3 | 0.00 / 0.00 | 0.00 | 0.00 / 0.00 | 0.00 / 0.00 | 1.00 / 1.00 | 0.70–0.72 | – / – / – |" in text
+
+
+def test_rows_out_of_order_give_the_same_table_without_a_performance_warning():
+    # rows in no order at all (several folders, shuffled): M4 and M0, seeds 0-2, two scenarios
+    rows = pd.DataFrame([_row(m, s, sc, k, 0.001 * (s + 1), 0.0, 0.5 + 0.1 * s)
+                         for m in ("M4", "M0") for s in (2, 0, 1) for sc in ("Roundabout", "CPM") for k in (1, 0)])
+    rows = rows.sample(frac=1, random_state=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # pandas' PerformanceWarning "indexing past lexsort depth"
+        table = seed_table(rows, None, ["M0", "M4"])
+    assert list(zip(table["model"], table["seed"], strict=True)) == [(m, s) for m in ("M0", "M4") for s in (0, 1, 2)]
+    assert list(table["CR_total_CPM"]) == pytest.approx([0.1 * (s + 1) for _ in "ab" for s in range(3)])
+    assert list(table["AS_max"]) == pytest.approx([0.5 + 0.1 * s for _ in "ab" for s in range(3)])
 
 
 def test_short_trainings_have_windows_inside_them():

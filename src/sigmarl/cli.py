@@ -13,7 +13,7 @@ from sigmarl import __version__
 from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
 from sigmarl.paths import add_user_conf_dir, config_files
 from sigmarl.resources import use_threads
-from sigmarl.scenarios import scenario_names
+from sigmarl.scenarios import scenario, scenario_names
 
 
 def _map_names() -> list[str]:
@@ -80,6 +80,8 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     from sigmarl.compose import compose_config
     from sigmarl.evaluation.target import resolve_checkpoint
 
+    for name in args.scenario or ():  # a wrong name is answered before Hydra, in well under a second
+        scenario(name)
     cfg = compose_config(args.overrides)
     if args.scenario:
         cfg.eval.scenarios = list(args.scenario)
@@ -246,6 +248,7 @@ def _info(parser: argparse.ArgumentParser, key: str | None) -> str:
 
 
 _KEYS = "config keys"  # the epilog that _KeysHelp replaces with the keys
+_EVAL_KEYS = "eval keys"  # ... with the evaluation's keys and their defaults
 
 
 class _KeysHelp(argparse.RawDescriptionHelpFormatter):
@@ -258,6 +261,10 @@ class _KeysHelp(argparse.RawDescriptionHelpFormatter):
             from sigmarl.config_help import keys_epilog
 
             text = keys_epilog()
+        elif text == _EVAL_KEYS:
+            from sigmarl.config_help import keys_epilog
+
+            text = keys_epilog("eval.")
         super().add_text(text)
 
 
@@ -287,14 +294,15 @@ def build_parser() -> argparse.ArgumentParser:
              "kept apart in experiment sigmarl-smoke (runs/sigmarl-smoke/...)",
     )
     train.set_defaults(func=cmd_train)
-    ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios")
+    ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios",
+                        epilog=_EVAL_KEYS, formatter_class=_KeysHelp)
     ev.add_argument("target", help="checkpoint file, training run folder, or MLflow training run id")
     ev.add_argument("--scenario", action="append", help=f"one of {', '.join(scenario_names())} (default: the "
                     "study's, the paper's four); repeatable")
     ev.add_argument("--out", help="the CSV for the per-simulation rows (default: evaluation_rows.csv beside the checkpoint)")
     ev.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. eval.n_sims=8 eval.steps=600")
     ev.set_defaults(func=cmd_evaluate)
-    sw = sub.add_parser("sweep", help="train the six models in parallel (Hydra multirun), then evaluate each")
+    sw = sub.add_parser("sweep", help="train the study's variants x seeds in parallel (Hydra multirun), then evaluate each")
     sw.add_argument("overrides", nargs="*", default=[],
                     help="Hydra overrides, e.g. study=quick seeds=[0,1,2] models=[M0,M4] hydra.launcher.n_jobs=3")
     sw.set_defaults(func=cmd_sweep)

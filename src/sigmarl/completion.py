@@ -13,7 +13,7 @@ from sigmarl.paths import conf_dir
 from sigmarl.scenarios import scenario_names
 from sigmarl.suggest import schema_keys
 
-GROUPS = ("map", "obs", "network", "ppo", "study", "hydra/launcher")
+GROUPS = ("map", "obs", "network", "ppo", "rules", "study", "hydra/launcher")
 BUILTIN_LAUNCHERS = ("basic", "joblib")  # Hydra's own and the joblib plugin's, not in conf/
 SWEEP_SHORTHANDS = ("models=", "seeds=")
 
@@ -82,7 +82,7 @@ def info() -> str:
     lines = [f"sigmarl {sigmarl.__version__} (Python {platform.python_version()}, {sigmarl.__path__[0]})",
              f"config folder: {conf_dir()}",
              "config groups (GROUP=OPTION; defaults: map=cpm_intersection obs=full network=paper ppo=paper "
-             "study=paper hydra/launcher=joblib in a sweep):"]
+             "rules=ours study=paper hydra/launcher=joblib in a sweep):"]
     lines += [f"  {g:<15} {', '.join(group_options(g))}" for g in GROUPS]
     lines += [f"scenarios (eval.scenarios=[...]): {', '.join(scenario_names())}",
               "packages: " + ", ".join(f"{p} {version(p)}" for p in

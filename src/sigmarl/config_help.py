@@ -98,9 +98,11 @@ def _line(k: KeyHelp) -> str:
     return f"{k.key} ({k.type}, default {k.default!r}): {k.help}"
 
 
-def keys_epilog() -> str:
-    """The keys and their help, for `sigmarl train --help`."""
-    lines = ["config keys (override as KEY=VALUE; `sigmarl --info KEY` for one key or group):"]
+def keys_epilog(prefix: str = "") -> str:
+    """The keys and their help, for `sigmarl train --help` (those under `prefix`, with their
+    defaults, for `sigmarl evaluate --help`)."""
+    what = f"{prefix.rstrip('.')} keys and their defaults" if prefix else "config keys"
+    lines = [f"{what} (override as KEY=VALUE; `sigmarl --info KEY` for one key or group):"]
     lines += [f"  {k.key}: {k.help}" if k.group else f"    {k.key}={k.default!r}  {k.help}"
-              for k in key_help()]
+              for k in key_help() if k.key.startswith(prefix)]
     return "\n".join(lines)

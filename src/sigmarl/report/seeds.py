@@ -44,7 +44,7 @@ def seed_table(rows: pd.DataFrame, curves: pd.DataFrame | None, models: list[str
     keys = chosen[["model", "seed", "scenario"]]
     # in the table's units (collision rates in %)
     per_seed = pd.concat([keys, scaled(chosen)], axis=1).groupby(["model", "seed", "scenario"], sort=False)[
-        [*RATES, "CD", "AS"]].mean()
+        [*RATES, "CD", "AS"]].mean().sort_index()  # sorted: `.loc[(model, seed)]` without a PerformanceWarning
     by_seed = _curves_by_seed(curves)
     records = []
     for model in models:

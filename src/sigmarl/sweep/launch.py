@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shlex
 import sys
 import warnings
 from collections.abc import Sequence
@@ -20,6 +21,7 @@ from sigmarl.paths import CONFIG_PATH, conf_dir, user_conf_dirs
 from sigmarl.readers import rows_measured
 from sigmarl.resources import sweep_folder_override, sweep_owner_override
 from sigmarl.run import Run, write_atomic
+from sigmarl.sweep.command import override_key
 from sigmarl.sweep.plan import Job, SweepPlan, plan_sweep
 from sigmarl.tracking import open_tracker
 
@@ -105,6 +107,30 @@ def summarise(plan: SweepPlan) -> int:
         variant = " ".join(job.variant)
         print(f"  {job.label:<{width}} {variant:<28} seed {job.seed:<3} {state}   [{run_dir}]")
     if not bad:
-        keep = [o for o in plan.fixed if o.startswith(("study", "tracking", "runs_root"))]
-        print(f"next: sigmarl report {' '.join(keep)}".rstrip())
+        print(f"next: {report_hint(plan)}")
     return 1 if bad else 0
+
+
+def report_hint(plan: SweepPlan) -> str:
+    """The `sigmarl report` command that finds this sweep's runs, as typed in the same folder:
+    its --config-dir folders and the overrides that choose the study, the store and the run
+    folders (all of the sweep's where others move them too, e.g. ppo=smoke's own experiment)."""
+    from sigmarl.compose import compose_config
+
+    keep = [o for o in plan.fixed if override_key(o).split(".")[0] in ("study", "tracking", "runs_root")]
+    if len(keep) < len(plan.fixed) and _where(compose_config(keep)) != _where(plan.config):
+        keep = list(plan.fixed)
+    dirs = [f"--config-dir {shlex.quote(_shown(d))}" for d in user_conf_dirs()]
+    return " ".join(["sigmarl", *dirs, "report", *map(shlex.quote, keep)])
+
+
+def _where(cfg) -> tuple[str, ...]:
+    return cfg.study.name, cfg.tracking.experiment, cfg.tracking.tracking_uri, str(cfg.runs_root)
+
+
+def _shown(folder: Path) -> str:
+    """A folder as the user would type it here: relative below the working folder."""
+    try:
+        return str(folder.relative_to(Path.cwd()))
+    except ValueError:
+        return str(folder)
