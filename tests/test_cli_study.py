@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from sigmarl.cli import main
@@ -11,6 +13,8 @@ from sigmarl.run import FAILED_FILE
 from sigmarl.sweep import plan_sweep
 from sigmarl.sweep.job import run_job
 from sigmarl.tracking import connect
+
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "paper-budget"
 
 
 def test_sweep_defaults_cover_the_six_models_with_one_job_per_core():
@@ -138,3 +142,39 @@ def test_an_interrupted_job_is_unfinished_not_failed(tmp_path):
     finally:
         signal.signal(signal.SIGINT, previous)
     assert (run / "checkpoint.pt").exists() and not (run / FAILED_FILE).exists()
+
+
+def test_train_over_several_seeds_points_to_the_sweep_in_one_line(capsys):
+    assert main(["train", "seed=0,1", "ppo=smoke", "tracking.enabled=false"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "`sigmarl sweep seed=0,1`" in err and "multirun" not in err and len(err.splitlines()) == 1
+
+
+def test_a_dict_for_study_variants_says_what_form_they_take(capsys):
+    assert main(["train", "study.variants={K4:{x:1}}", "--cfg", "job"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "did you mean" not in err and "variants: {LABEL: [override, ...]}" in err and len(err.splitlines()) == 1
+
+
+def test_an_unknown_scenario_is_refused_before_the_checkpoint_is_looked_at(capsys):
+    import time
+
+    start = time.perf_counter()
+    assert main(["evaluate", str(RESULTS / "M0" / "seed0" / "best.pt"), "--scenario", "Foo"]) == 2
+    assert time.perf_counter() - start < 1.0  # no Hydra composition, no torch
+    assert "unknown scenario 'Foo'" in capsys.readouterr().err
+
+
+def test_help_texts_give_the_evaluations_defaults_and_the_rules_group(capsys):
+    from sigmarl.config import EvalConfig
+
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    text = capsys.readouterr().out
+    assert f"eval.n_sims={EvalConfig.n_sims}" in text and f"eval.seed={EvalConfig.seed}" in text
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    assert "six models" not in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main(["--info"])
+    assert "  rules           ours, paper," in capsys.readouterr().out

@@ -181,3 +181,17 @@ def test_rows_as_written_pass_the_checks():
     # every committed study's rows, float32 sums and rounding included
     for root in (FIXTURE, Path(__file__).parents[1] / "results" / "paper-budget"):
         assert len(read_results(root).rows) > 0
+
+
+@pytest.mark.parametrize("key", ["eval.scenarios", "study.scenarios"])
+def test_scenarios_given_restrict_the_report_or_are_refused(tmp_path, capsys, key):
+    assert report(tmp_path, "cpm", "--no-figures", f"{key}=[Roundabout,CPM]") == 0
+    summary = pd.read_csv(tmp_path / "cpm" / "summary.csv")
+    assert list(dict.fromkeys(summary["scenario"])) == ["CPM", "Roundabout"]  # the table's order
+    full = pd.read_csv(FIXTURE / "M0" / "seed0" / "evaluation_rows.csv")
+    assert set(full["scenario"]) - set(summary["scenario"]) == {"Intersection", "On-Ramp"}
+    # a scenario the folder has no rows of: one line, no report
+    capsys.readouterr()
+    assert report(tmp_path, "none", "--no-figures", f"{key}=[CPM-30]") == 2
+    assert "no evaluation rows of scenario(s) CPM-30" in capsys.readouterr().err
+    assert not (tmp_path / "none").exists()

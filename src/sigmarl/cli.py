@@ -157,7 +157,9 @@ def cmd_report(args: argparse.Namespace) -> None:
 
     options = ReportOptions(latex=args.latex, trim=args.trim, compare_paper=args.compare_paper,
                             models=args.models.split(",") if args.models else None, ci=args.ci,
-                            figures=not args.no_figures, animation_steps=args.animations, partial=args.partial)
+                            figures=not args.no_figures, animation_steps=args.animations, partial=args.partial,
+                            scenarios=list(cfg.eval.scenarios) if _sets(args.overrides, "eval.scenarios",
+                                                                        "study.scenarios") else None)
     out_dir = Path(args.out) if args.out else None
     if args.source:
         report = make_report_from_folder([Path(s) for s in args.source], cfg, out_dir, options)
@@ -172,6 +174,11 @@ def cmd_report(args: argparse.Namespace) -> None:
     if report.verdicts_markdown:
         print(report.verdicts_markdown)
     print("wrote " + ", ".join(str(p) for p in report.paths.values()))
+
+
+def _sets(overrides: Sequence[str], *keys: str) -> bool:
+    """Whether one of `overrides` sets one of `keys` (`key=...`, `+key=...`, `++key=...`)."""
+    return any(o.split("=", 1)[0].lstrip("+") in keys for o in overrides)
 
 
 def _disk_full(error: BaseException) -> str | None:

@@ -34,6 +34,7 @@ class ReportOptions:
     figures: bool = True
     animation_steps: int = 0  # > 0: one GIF per scenario of the baseline driving
     partial: bool = False  # report what is there when a run failed or a variant has no rows
+    scenarios: list[str] | None = None  # only these (eval.scenarios=/study.scenarios= given), in this order
 
 
 def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions = ReportOptions()) -> Report:
@@ -53,6 +54,7 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     except SigmarlError as e:  # no rows at all: say what became of the study's runs
         missing = left_out(list(cfg.study.variants), set(), folders, where, declared=False)
         raise SigmarlError(f"{e}; " + "; ".join(map(str, missing)) if missing else str(e)) from e
+    rows = only_scenarios(rows, options.scenarios, experiment)
     notes = _coverage(rows, cfg, options, folders, where)
     curves = records.load_training_curves(client, experiment) if options.figures else None
     out_dir = out_dir or Path("reports") / experiment
@@ -75,6 +77,7 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     """
     roots = [Path(r) for r in (root if isinstance(root, list) else [root])]
     results = read_results(roots[0]) if len(roots) == 1 else read_many(roots)
+    results.rows = only_scenarios(results.rows, options.scenarios, ", ".join(map(str, roots)))
     root = roots[0]
     out_dir = out_dir or Path("reports") / (root.resolve().name if len(roots) == 1 else cfg.study.name)
     curves = results.curves if len(results.curves) else None  # read anyway: training.md needs them
@@ -88,6 +91,17 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
                        {"source": ",".join(str(r.resolve()) for r in roots)},
                        source=",".join(str(r) for r in roots))
     return report
+
+
+def only_scenarios(rows, scenarios: list[str] | None, where: str):
+    """The rows of `scenarios` (all rows where None); a scenario without rows is refused in one line."""
+    if scenarios is None:
+        return rows
+    have = list(dict.fromkeys(rows["scenario"].astype(str)))
+    if absent := [s for s in scenarios if s not in have]:
+        raise SigmarlError(f"no evaluation rows of scenario(s) {', '.join(absent)} in {where}; "
+                           f"its rows are of {', '.join(have)}")
+    return rows[rows["scenario"].astype(str).isin(scenarios)].reset_index(drop=True)
 
 
 def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callable[[], Path],
