@@ -17,7 +17,7 @@ from sigmarl.errors import SigmarlError
 if TYPE_CHECKING:
     from sigmarl.config import Config, ObsConfig
 
-BOUNDARY_POINTS = 5  # observed points of each corridor boundary (env.scenario.SIDE_WINDOW)
+BOUNDARY_POINTS = 5  # observed points of each corridor boundary (env.ego.SIDE_WINDOW)
 CORNERS = 4
 
 

@@ -38,7 +38,7 @@ SEED_MAX = 2**32 - 1
 # component holds at most 255 bytes, MLflow's SQL schema 256 characters.
 EXPERIMENT_MAX_BYTES = 255
 # Reference points are slots of the environment's center-line window, which reaches 6
-# resampled points ahead of the vehicle's own (env.scenario.LINE_WINDOW).
+# resampled points ahead of the vehicle's own (env.ego.LINE_WINDOW).
 MAX_REF_REACH = 6
 
 
