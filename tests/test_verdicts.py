@@ -9,7 +9,8 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from sigmarl.report.verdicts import Design, plan_text, verdict_table, verdicts_markdown
+from sigmarl.report.plan import plan_table, plan_text
+from sigmarl.report.verdicts import Design, verdict_table, verdicts_markdown
 from sigmarl.stats.power import (
     difference_power,
     equivalence_power,
@@ -140,7 +141,7 @@ def test_verdict_rules_and_holm_over_the_study():
     assert undecided["seeds_needed"] >= undecided["seeds_needed_unadjusted"] >= 2
     text = verdicts_markdown(table, design)
     assert "| A | CR_total (%) | M2 | 5/5 |" in text and "equivalent within ±0.3 pp" in text
-    assert "undecided" in plan_text(table, design)
+    assert "undecided" in plan_text(plan_table(rows, design), design)
 
 
 def test_design_rejects_unknown_metrics():

@@ -264,32 +264,3 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
         "difference.",
     ]
     return "\n".join(lines) + "\n"
-
-
-def plan_text(table: pd.DataFrame, design: Design) -> str:
-    """`sigmarl report --plan`: per comparison its verdict, the seeds needed and how much of a
-    seed mean's variance is seed-to-seed."""
-    lines = [
-        f"Seed plan against {design.baseline} (power {design.power:g}, α {design.alpha:g}, "
-        f"Holm over {len(table)} comparisons):",
-        "",
-        f"{'scenario':<18}{'metric':<10}{'model':<7}{'seeds':>7}  {'difference':>10}  {'verdict':<22}"
-        f"{'needed':>7}{'unadj.':>8}  {'to show':<12}{'seed share':>11}",
-    ]
-    for _, r in table.iterrows():
-        share = f"{_share(r['seed_share_variant'])}/{_share(r['seed_share_baseline'])}"
-        lines.append(
-            f"{r['scenario']:<18}{r['metric']:<10}{r['variant']:<7}{r['n_variant']:>3}/{r['n_baseline']:<3}  "
-            f"{signed(r['difference']):>10}  {verdict_label(r):<22}{seeds_text(r['seeds_needed']):>7}"
-            f"{seeds_text(r['seeds_needed_unadjusted']):>8}  {r['decision_planned'] or '–':<12}{share:>11}"
-        )
-    lines += [
-        "",
-        "needed: seeds per model for the easier decision at Holm's level (unadj.: at α); to show: which one; "
-        f"seed share: the part of a seed mean's variance that is seed-to-seed (the model's / {design.baseline}'s).",
-    ]
-    return "\n".join(lines) + "\n"
-
-
-def _share(x: float) -> str:
-    return "–" if not math.isfinite(x) else f"{100 * x:.0f}%"

@@ -40,15 +40,15 @@ SEED = 20240924  # fixed, so that the same samples give the same p-values
 _CHUNK = 4_000_000  # splits x samples computed at once (memory)
 
 
-def is_exact(n: int, k: int) -> bool:
-    return math.comb(n, k) <= EXACT_LIMIT
+def is_exact(n: int, k: int, exact_limit: int = EXACT_LIMIT) -> bool:
+    return math.comb(n, k) <= exact_limit
 
 
 @lru_cache(maxsize=8)
-def splits(n: int, k: int, draws: int = DRAWS, seed: int = SEED) -> np.ndarray:
+def splits(n: int, k: int, draws: int = DRAWS, seed: int = SEED, exact_limit: int = EXACT_LIMIT) -> np.ndarray:
     """[S, n] float indicators of the first group (k of n) for every split, or for `draws`
-    random ones when there are more than EXACT_LIMIT splits (the observed split not among them)."""
-    if is_exact(n, k):
+    random ones when there are more than `exact_limit` splits (the observed split not among them)."""
+    if is_exact(n, k, exact_limit):
         idx = np.fromiter((i for c in combinations(range(n), k) for i in c), dtype=np.intp).reshape(-1, k)
     else:
         idx = np.argsort(np.random.default_rng(seed).random((draws, n)), axis=1)[:, :k]
@@ -64,18 +64,19 @@ def _share(extreme: np.ndarray, exact: bool) -> np.ndarray:
     return count / extreme.shape[-1] if exact else (1 + count) / (1 + extreme.shape[-1])
 
 
-def permutation_p(a, b, margin: float, draws: int = DRAWS, seed: int = SEED):
+def permutation_p(a, b, margin: float, draws: int = DRAWS, seed: int = SEED, exact_limit: int = EXACT_LIMIT):
     """Two-sided permutation p of mean(a) = mean(b), and TOST's p of |difference| >= margin.
 
     a [..., n_a] and b [..., n_b]: one pair of samples, or many along the leading axes (then
-    the two p's are arrays of that shape)."""
+    the two p's are arrays of that shape). `exact_limit`: enumerate every split up to this many
+    (a power simulation, `sigmarl.stats.planning`, sets it low for speed)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     lead = np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
     a = np.broadcast_to(a, (*lead, a.shape[-1])).reshape(-1, a.shape[-1])
     b = np.broadcast_to(b, (*lead, b.shape[-1])).reshape(-1, b.shape[-1])
     na, nb = a.shape[-1], b.shape[-1]
-    exact = is_exact(na + nb, na)
-    s = splits(na + nb, na, draws, seed)
+    exact = is_exact(na + nb, na, exact_limit)
+    s = splits(na + nb, na, draws, seed, exact_limit)
     first_a = s[:, :na].sum(axis=1)  # how many of a's values each split puts in its first group
     shift = first_a / na - (na - first_a) / nb  # a split's difference moves by margin x this
     p_diff, p_eq = np.empty(len(a)), np.empty(len(a))
