@@ -1,7 +1,10 @@
 """`sigmarl sweep seeds=auto`: seeds added where they decide something.
 
 The sweep runs in rounds. The first trains the study's own seeds (`study.seeds`, at least
-two) for every variant. After each round every comparison (variant against the baseline, per
+two) for every variant, raised to the first look at which the permutation test can show a
+difference (`sigmarl.stats.sequential.first_decidable_look`: at 5 against 5 seeds its smallest p,
+2/252 = 0.0079, lies above the design's level of that look, so from 3 seeds up to 10 and one
+comparison the first look is at 6 seeds; with Holm over 20 comparisons at 7). After each round every comparison (variant against the baseline, per
 scenario and decided metric) is decided again under a group-sequential design that keeps the
 error of the repeated looks at the study's level (`sigmarl.stats.sequential`), and each
 variant with an undecided comparison gets one more seed (the baseline too, when it needs
@@ -27,6 +30,7 @@ from sigmarl.report.folder import RunFolder, rows_of
 from sigmarl.report.rounds import key, next_round
 from sigmarl.report.verdicts import design_of
 from sigmarl.run import Run, write_atomic
+from sigmarl.stats.sequential import first_decidable_look
 from sigmarl.sweep import launch, plan_sweep
 
 RECORD = "seeds_auto.json"
@@ -44,14 +48,18 @@ def run_auto(user: Sequence[str]) -> int:
         raise SigmarlError(f"seeds=auto compares with the baseline {study.baseline}, which is not among "
                            f"the variants swept ({', '.join(labels)})")
     design = design_of(study, labels)
+    family = len(design.compared) * len(study.scenarios) * len(design.metrics)
+    first = first_decidable_look(n_start, design.max_seeds, design.alpha, max(family, 1))
     path = Path(plan.config.runs_root) / RECORD
     identity = {"study": study.name, "variants": labels, "baseline": design.baseline,
                 "metrics": list(design.metrics), "margins": design.margins, "alpha": design.alpha,
-                "n_start": n_start, "max_seeds": design.max_seeds}
-    record = _load(path, identity) or {**identity, "seeds": {j.label: sorted({x.seed for x in plan.jobs
-                                                                              if x.label == j.label})
-                                                            for j in plan.jobs},
-                                       "previous": {}, "looks": [], "done": False}
+                "n_start": n_start, "first_look": first, "max_seeds": design.max_seeds}
+    record = _load(path, identity)
+    if record is None:
+        record = {**identity, "seeds": _first_seeds(plan.jobs, first), "previous": {}, "looks": [], "done": False}
+    if first > n_start and not record["looks"]:
+        print(f"seeds=auto: the first look is at {first} seeds per model (at fewer the permutation test "
+              f"cannot show a difference at the design's level over {family} comparison(s))")
     while True:
         round_plan = plan_sweep(user, seeds_by_label=record["seeds"])
         if record["done"]:
@@ -63,7 +71,7 @@ def run_auto(user: Sequence[str]) -> int:
                   f"({path} holds the rounds so far)")
             return rc
         rows = _rows(round_plan)
-        look = next_round(rows, design, n_start, record["previous"])
+        look = next_round(rows, design, first, record["previous"])
         decided = look.verdicts[look.verdicts["verdict"] != "undecided"]
         for _, r in decided.iterrows():
             record["previous"][key(r["scenario"], r["metric"], r["variant"])] = r["verdict"]
@@ -81,6 +89,16 @@ def run_auto(user: Sequence[str]) -> int:
         if look.done:
             print(f"seeds=auto: done; {_summary(record)}; the record is {path}")
             return 0
+
+
+def _first_seeds(jobs, first: int) -> dict[str, list[int]]:
+    """Each variant's seeds of the first round: the study's, then the next ones up to `first`."""
+    out = {}
+    for j in jobs:
+        out.setdefault(j.label, set()).add(j.seed)
+    for label, seeds in out.items():
+        out[label] = sorted(seeds) + [max(seeds) + 1 + i for i in range(first - len(seeds))]
+    return out
 
 
 def _load(path: Path, identity: dict) -> dict | None:

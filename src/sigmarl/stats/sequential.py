@@ -146,3 +146,21 @@ def sequential_decide(
     decided_before = np.array([p is not None for p in prev])
     return (verdicts, np.where(decided_before, math.nan, adj_diff), np.where(decided_before, math.nan, adj_eq),
             np.array([a[0] for a in at]))
+
+
+def smallest_permutation_p(n: int) -> float:
+    """The smallest two-sided p of the exact permutation test at n against n seeds: the observed
+    split and its mirror among C(2n, n) (`sigmarl.stats.permutation`)."""
+    return 2 / math.comb(2 * n, n)
+
+
+def first_decidable_look(n_start: int, max_seeds: int, alpha: float, comparisons: int = 1) -> int:
+    """The fewest seeds per side, at least n_start, at which a first look can show a difference:
+    with looks from there to max_seeds, the permutation test's smallest p reaches that look's
+    two-sided nominal level divided by `comparisons` (Holm's first step over the study's
+    family). A look before it could decide no better/worse and would only spend alpha. When
+    none can, the single look at max_seeds."""
+    for n in range(n_start, max_seeds):
+        if smallest_permutation_p(n) <= nominal_levels(n, max_seeds, alpha)[n][0] / comparisons:
+            return n
+    return max_seeds
