@@ -152,7 +152,8 @@ def test_writes_the_table_files(tmp_path):
     assert {p.name for p in tmp_path.iterdir()} == {
         "table.md", "table.csv", "summary.csv", "composite_scores.csv", "table.tex",
         "improvement.csv", "aggregate_scores.csv", "statistics.md", "verdicts.md", "verdicts.csv",
-        "marl_eval.json", "marl_eval_intervals.json", "matrix.md", "seeds.md", "seeds.csv",
+        "marl_eval.json", "marl_eval_intervals.json", "matrix.md", "seeds.md", "seeds.csv", "findings.md",
+        "improvement_overall.csv",
     }  # fmt: skip
     assert report.paths["markdown"].read_text() == report.markdown
     matrix = report.paths["matrix"].read_text().splitlines()
