@@ -34,8 +34,14 @@ from sigmarl.report.curve_verdicts import (
 from sigmarl.report.findings import findings_markdown
 from sigmarl.report.interactions import interaction_table, interactions_markdown
 from sigmarl.report.marl_eval import export_files, interval_data
+from sigmarl.report.next_seed import next_seed_markdown, prediction_table, slow_seed_table
 from sigmarl.report.paper import paper_curves, paper_values
-from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
+from sigmarl.report.scores import (
+    aggregate_scores,
+    composite_intervals,
+    improvement,
+    improvement_overall,
+)
 from sigmarl.report.seeds import seed_table, seeds_markdown
 from sigmarl.report.tables import (
     ResultTable,
@@ -244,11 +250,14 @@ def table_section(d: Draft) -> None:
 
 def statistics_section(d: Draft) -> None:
     """Probability of improvement and aggregate scores over scenarios: statistics.md,
-    improvement.csv and aggregate_scores.csv (`sigmarl.report.scores`)."""
+    improvement.csv, improvement_overall.csv and aggregate_scores.csv (`sigmarl.report.scores`)."""
     d.improvement = improvement(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
+    overall = improvement_overall(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
     d.aggregates = aggregate_scores(d.cells, d.composite, d.models)
-    d.statistics = statistics_markdown(d.improvement, d.aggregates, trim=d.options.trim)
+    both = pd.concat([d.improvement, overall], ignore_index=True) if len(overall) else d.improvement
+    d.statistics = statistics_markdown(both, d.aggregates, trim=d.options.trim)
     d.write("improvement", "improvement.csv", d.improvement)
+    d.write("improvement_overall", "improvement_overall.csv", overall)
     d.write("aggregates", "aggregate_scores.csv", d.aggregates)
     d.write("statistics", "statistics.md", d.statistics)
 
@@ -266,8 +275,15 @@ def training_section(d: Draft) -> None:
 def seeds_section(d: Draft) -> None:
     """Each model-seed's rates, deviation, speed and rewards (seeds.csv, seeds.md)."""
     seeds = seed_table(d.rows, d.curves, d.models)
+    scenarios = scenario_order(d.rows)
+    prediction = prediction_table(seeds, scenarios)
+    design = d.design
+    slow = slow_seed_table(seeds, {v: design.baseline_of(v) for v in design.compared}, design.slow_seed)
     d.write("seeds", "seeds.csv", seeds)
-    d.write("seeds_md", "seeds.md", seeds_markdown(seeds, scenario_order(d.rows)))
+    d.write("seed_prediction", "seed_prediction.csv", prediction)
+    d.write("slow_seeds", "slow_seeds.csv", slow)
+    spread = next_seed_markdown(prediction, slow, scenarios)
+    d.write("seeds_md", "seeds.md", seeds_markdown(seeds, scenarios) + ("\n" + spread if spread else ""))
 
 
 def latex_section(d: Draft) -> None:

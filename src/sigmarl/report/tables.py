@@ -247,14 +247,17 @@ def statistics_markdown(
         lines += [
             "",
             "A simulation of a random seed of each model is compared; ties count half; "
-            "0.5 means no difference, 1 that the reference always had fewer collisions.",
+            "0.5 means no difference, 1 that the reference always had fewer collisions. "
+            "Per scenario, the interval resamples each model's seeds and simulations; the mean "
+            "over scenarios resamples whole seeds (all scenarios of a seed together) with the "
+            "percentile level widened for the number of seeds.",
             "",
         ]
     if len(aggregates):
         stats = list(dict.fromkeys(aggregates["statistic"]))
         cells = aggregates.set_index(["model", "statistic"])
         lines += [
-            "Composite score aggregated over scenarios [95% stratified bootstrap interval]:",
+            "Composite score aggregated over scenarios [95% interval, whole seeds resampled]:",
             "",
             "| Model | " + " | ".join(stats) + " | scenarios | runs |",
             "|---|" + "---:|" * (len(stats) + 2),
