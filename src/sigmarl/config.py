@@ -235,6 +235,8 @@ class StudyConfig:
     """Equivalence margins per metric, in the table's units (percentage points, cm, m/s)."""
     max_seeds: int = 10
     """seeds=auto adds seeds up to this many per variant."""
+    slow_seed: float = 0.0
+    """A seed whose worst CR_total (%) over the scenarios exceeds this is slow; the report counts them per variant and tests each against its baseline (Fisher's exact). 0: off."""
     checkpoints_from: str = ""
     """A folder of trained runs (<label>/seed<k>/) to evaluate instead of training (e.g. results/paper-budget)."""
     job: str = ""

@@ -72,6 +72,7 @@ class Design:
     alpha: float = 0.05
     power: float = 0.8
     max_seeds: int = 10
+    slow_seed: float = 0.0  # worst CR_total (%) above which a seed is slow; 0: not declared
 
     def __post_init__(self):
         unknown = [m for m in self.metrics if m not in BY_NAME]
@@ -106,7 +107,8 @@ def design_of(study, variants: Sequence[str]) -> Design:
                if {x, y, own.get(x, baseline), own.get(y, baseline)} <= set(variants)}
     return Design(variants=variants, baseline=baseline, baselines=own, interactions=present,
                   metrics=tuple(study.metrics),
-                  margins={**DEFAULT_MARGINS, **dict(study.margins)}, max_seeds=int(study.max_seeds))
+                  margins={**DEFAULT_MARGINS, **dict(study.margins)}, max_seeds=int(study.max_seeds),
+                  slow_seed=float(study.slow_seed))
 
 
 def seed_values(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str], list[np.ndarray]]:
