@@ -65,6 +65,14 @@ def test_f6_a_scenario_of_more_agents_than_its_map_holds_is_refused_at_compositi
     assert sorted(p.name for p in tmp_path.iterdir()) == ["conf"]
 
 
+def test_f6_training_agents_the_map_cannot_hold_leave_no_run_folder(tmp_path, capsys, monkeypatch):
+    """Found by scripts/probe.py: the refusal came after the run folder and its lock were made."""
+    monkeypatch.chdir(tmp_path)
+    line = one_line_exit_2(["train", "ppo=smoke", "env.n_agents=10000", "tracking.enabled=false"], capsys)
+    assert "10000 agents" in line and "at most 344" in line  # CPM's intersection (spawn.capacity)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_f6_a_scenario_that_fits_its_map_is_accepted(tmp_path, monkeypatch):
     from sigmarl.compose import compose_config
     from sigmarl.paths import add_user_conf_dir

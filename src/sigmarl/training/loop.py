@@ -22,8 +22,10 @@ import torch
 
 from sigmarl import crash
 from sigmarl.config import Config, PPOConfig, as_dict
+from sigmarl.env.factory import check_room
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import differences
+from sigmarl.maps import load_map
 from sigmarl.paths import ensure_writable
 from sigmarl.progress import Progress
 from sigmarl.run import Run
@@ -164,6 +166,8 @@ def train_block(cfgs: Sequence[Config], trackers: Sequence[Tracker] | None = Non
     says so, else the lone run. Every seed's folder is held for the whole time."""
     cfgs = [check(c) for c in cfgs]  # a no-op for a composed config; one built in code is checked too
     _check_block(cfgs)
+    # agents the training map cannot hold are refused before a run folder exists
+    check_room(load_map(cfgs[0].map), cfgs[0].env.n_agents)
     for c in cfgs:
         ensure_writable(Path(c.run_dir).parent, "choose another run_dir=...")
     with contextlib.ExitStack() as held:

@@ -10,11 +10,13 @@ iteration is lost or doubled.
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 from sigmarl import crash
 from sigmarl.config import Config, as_dict, to_yaml
-from sigmarl.errors import Terminated, was_interrupted
+from sigmarl.errors import SigmarlError, Terminated, was_interrupted
+from sigmarl.readers import read_run_config
 from sigmarl.run import REWARD_COLUMN, Run, write_atomic
 from sigmarl.tracking import Tracker, TrainingRun
 from sigmarl.training import checkpoint as ckpt
@@ -62,11 +64,25 @@ class SeedRun:
         what it missed. A new run: its config.yaml, and no rows."""
         metrics_path = self.run.metrics_file
         if self.state:
+            self._repair_config()
             self.record.sync_metrics(metrics_file.truncate(metrics_path, self.start))
             return
         write_atomic(self.run.config_file, to_yaml(self.cfg))
         metrics_path.unlink(missing_ok=True)
         self.record.log_artifact(self.run.config_file)
+
+    def _repair_config(self) -> None:
+        """A resume whose config.yaml a crash or a hand cut, emptied or garbled: the checkpoint
+        holds the same config (the resume checked it), so the record is written again rather
+        than left for `report` or `evaluate` to refuse after training."""
+        path = self.run.config_file
+        try:
+            read_run_config(path)
+            return
+        except SigmarlError as e:
+            said = str(e).split(";")[0] if path.exists() else f"{path} is missing"
+        write_atomic(path, to_yaml(self.cfg))
+        print(f"{said}; written again from the checkpoint's config", file=sys.stderr)
 
     def record_iteration(self, done: int, metrics: dict[str, float], learned) -> float:
         """An iteration's row, and best.pt if its reward is the best so far (to 2 decimals, the
