@@ -23,7 +23,9 @@ def plot_distributions(
     """Box plots of CR_total, CD and AS over the simulations: a row of panels per scenario.
 
     Every simulation is also drawn as a dot, since with 32 simulations and mostly zero
-    collisions a box alone hides how many simulations had any.
+    collisions a box alone hides how many simulations had any. The collision rate's axis is
+    symlog, so a model that collides in 40 % of steps leaves the others' tenths of a percent
+    visible.
     """
     fig = Figure(
         figsize=(3.6 * len(DISTRIBUTION_METRICS), 2.6 * len(scenarios)), layout="constrained"
@@ -51,6 +53,14 @@ def plot_distributions(
             ax.set_xlim(0.4, len(models) + 0.6)
             ax.set_title(f"{scenario}: {title}", fontsize=9)
             ax.grid(axis="y", alpha=0.3)
+            if metric == "CR_total":
+                # linear up to 0.1 %, logarithmic above: one model at 40 % would otherwise
+                # flatten the others' 0-2 % onto the axis
+                top = max([float(d.max()) for d in data if len(d)] + [0.1]) * 1.6
+                ticks = [t for t in (0, 0.1, 1, 10, 100) if t <= top]
+                ax.set_yscale("symlog", linthresh=0.1, linscale=0.5)
+                ax.set_ylim(0, top)
+                ax.set_yticks(ticks, [f"{t:g}" for t in ticks])
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return path
