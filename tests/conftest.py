@@ -9,8 +9,15 @@ environment tests can be worked out by hand.
 
 from __future__ import annotations
 
-import functools
 import os
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # One thread per worker (and per subprocess it starts): two workers on two cores with
+    # torch's default threads each contend for the cores and run slower than one worker.
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import functools
 from types import SimpleNamespace
 
 import numpy as np
@@ -22,6 +29,9 @@ from sigmarl.compose import compose_config
 from sigmarl.env.factory import make_env
 from sigmarl.maps.model import Lanelet, RoadMap
 from sigmarl.maps.routes import build_route
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    torch.set_num_threads(1)  # in case a plugin imported torch before the lines above ran
 
 ROAD_LENGTH = 4.0
 
