@@ -235,7 +235,7 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
         f"α = {design.alpha:g}):",
         "",
         "| Scenario | Metric | Model | seeds | difference [95% CI] | p (Holm) | Welch p | p equiv. (Holm) "
-        "| verdict | seeds needed (unadj.) |",
+        "| verdict | seeds needed at the observed difference (unadj.) |",
         "|---|---|---|---:|---|---:|---:|---:|---|---:|",
     ]
     if abs(design.alpha - 0.05) > 1e-12:
@@ -263,6 +263,8 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
         "otherwise undecided. seeds needed: seeds per model (and per baseline) for power "
         f"{design.power:g} to reach the easier decision, at Holm's level (at α unadjusted in parentheses), "
         "from the two-level variance of a seed mean (seed-to-seed plus simulations) and the observed "
-        "difference.",
+        "difference, whose interval on the same row says how far off that figure can be: a post-hoc "
+        "figure that moves with every seed added. To plan for the difference that matters (the margin), "
+        "`sigmarl report --plan`.",
     ]
     return "\n".join(lines) + "\n"
