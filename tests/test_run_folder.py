@@ -183,3 +183,40 @@ def test_a_resume_that_would_compute_in_another_precision_is_refused(tmp_path):
     state["resolved"] = {"precision": here, "device": "cpu", "threads": 3}  # other threads: fine
     torch.save(state, path)
     assert train(compose_config([*overrides, "resume=true"])).finished
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("how", ["ctrl-c to the group", "sigterm to the main process", "sigkill to a worker"])
+def test_an_interrupted_parallel_sweep_leaves_no_training_run_running(tmp_path, how):
+    """F16: loky ends its workers when the sweep is interrupted, before they can end their MLflow
+    runs; the sweep's main process ends those runs KILLED (resumable), as the workers would.
+    F17 (in part): a worker lost to SIGKILL (the OOM killer) leaves no run RUNNING either; Hydra
+    still prints joblib's traceback."""
+    from mlflow.tracking import MlflowClient
+
+    store = f"tracking.tracking_uri=sqlite:///{tmp_path}/mlflow.db"
+    sweep = subprocess.Popen(
+        [sys.executable, "-m", "sigmarl.cli", "sweep", "study=quick", "models=[M0]", "seeds=[0,1]", "ppo=smoke",
+         "ppo.iterations=40", "ppo.checkpoint_every=1", "eval.n_sims=1", "eval.steps=5", "eval.scenarios=[Roundabout]",
+         store, f"runs_root={tmp_path}/runs", "hydra.launcher.n_jobs=2"],
+        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    runs = [tmp_path / "runs" / "M0" / f"seed{k}" for k in (0, 1)]
+    deadline = time.time() + 300
+    while not all((r / RESUME_FILE).exists() for r in runs) and time.time() < deadline:
+        time.sleep(0.2)
+    assert all((r / RESUME_FILE).exists() for r in runs), sweep.stderr.read() if sweep.poll() is not None else ""
+    if how == "ctrl-c to the group":
+        os.killpg(sweep.pid, signal.SIGINT)
+    elif how == "sigterm to the main process":
+        os.kill(sweep.pid, signal.SIGTERM)
+    else:  # the worker training seed 1 wrote its pid into the folder's lock file
+        os.kill(int((runs[1].parent / ".seed1.lock").read_text().split()[0]), signal.SIGKILL)
+    out, err = sweep.communicate(timeout=300)
+    assert sweep.returncode != 0
+    if how == "sigkill to a worker":
+        assert "TerminatedWorkerError" in err, err[-2000:]
+    client = MlflowClient(store.split("=", 1)[1])
+    exp = client.get_experiment_by_name("sigmarl-quick")
+    statuses = {r.info.run_id: r.info.status
+                for r in client.search_runs([exp.experiment_id], "tags.kind = 'training'")}
+    assert len(statuses) == 2 and "RUNNING" not in statuses.values(), statuses

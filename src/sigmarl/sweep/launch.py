@@ -54,9 +54,30 @@ def launch(plan: SweepPlan) -> int:
         with tracker.study() if tracker is not None else nullcontext():
             main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
             main()
+    except BaseException:
+        if tracker is not None:
+            end_orphaned_runs(plan, tracker)
+        raise
     finally:
         sys.argv = argv
     return summarise(plan)
+
+
+def end_orphaned_runs(plan: SweepPlan, tracker) -> None:
+    """A launcher that ends its workers (loky on Ctrl-C or SIGTERM, a worker's SIGKILL) leaves
+    their training runs RUNNING: end KILLED (interrupted, resumable) the ones whose run folder
+    no process holds any more, as the worker itself would have."""
+    for job in plan.jobs:
+        run = Run(job.run_dir)
+        if not run.run_id_file.is_file() or run.done_file.exists():
+            continue
+        try:
+            with run.lock():  # a worker that still lives holds it, and ends its own run
+                record = tracker.training_run(run.run_id_file.read_text().strip(), reopen=False)
+                if record.status() == "RUNNING":
+                    record.finish("KILLED")
+        except Exception:  # noqa: BLE001 (best effort on the way out; the re-run repairs it)
+            continue
 
 
 def write_plan(plan: SweepPlan) -> Path:
