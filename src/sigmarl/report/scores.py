@@ -109,6 +109,16 @@ def _whole_seed_scores(mine: list[Cell], weights: dict[str, np.ndarray], n_boot:
     return [_seed_scores(r, weights[c.scenario]) for c, r in zip(mine, reps, strict=True)]
 
 
+def _compared(rows: pd.DataFrame, models: list[str], reference: str | None, trim: bool) -> tuple[pd.DataFrame, str]:
+    """The checked rows of `models` (trimmed as asked) and the reference: M0, or the first model
+    when M0 is absent."""
+    rows = validate_rows(rows)
+    rows = rows[rows["model"].isin(models)]
+    if trim:
+        rows = trim_collisions(rows)
+    return rows, reference or ("M0" if "M0" in models else models[0])
+
+
 def improvement(
     rows: pd.DataFrame,
     models: list[str],
@@ -125,11 +135,7 @@ def improvement(
     (`bootstrap.probability_of_improvement`); the interval resamples both models' seeds and
     simulations independently. Reference: M0, or the first model when M0 is absent.
     """
-    rows = validate_rows(rows)
-    rows = rows[rows["model"].isin(models)]
-    if trim:
-        rows = trim_collisions(rows)
-    reference = reference or ("M0" if "M0" in models else models[0])
+    rows, reference = _compared(rows, models, reference, trim)
     records = []
     for scenario in scenario_order(rows):
         sc = rows[rows["scenario"] == scenario]
@@ -166,11 +172,7 @@ def improvement_overall(
     Columns as `improvement`'s, scenario "mean over scenarios"; n_seeds_* count the union of
     each model's seeds. The level is widened for the smaller of the two seed counts.
     """
-    rows = validate_rows(rows)
-    rows = rows[rows["model"].isin(models)]
-    if trim:
-        rows = trim_collisions(rows)
-    reference = reference or ("M0" if "M0" in models else models[0])
+    rows, reference = _compared(rows, models, reference, trim)
     scenarios = scenario_order(rows)
     records = []
     for model in models:
