@@ -22,6 +22,7 @@ import forked
 import pytest
 import torch
 
+from sigmarl.block_membership import check_membership
 from sigmarl.compose import block_seeds, compose_block, compose_config
 from sigmarl.errors import SigmarlError
 from sigmarl.run import BLOCK_FILE, NEXT_RESUME_FILE, RESUME_FILE, Run
@@ -29,7 +30,7 @@ from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
 from sigmarl.training.block import BlockLearner
 from sigmarl.training.block_loss import block_update, clip_grad_norm_per_seed
-from sigmarl.training.block_record import check_membership, commit_checkpoints, settle_checkpoints
+from sigmarl.training.block_record import commit_checkpoints, settle_checkpoints
 from sigmarl.training.loop import train, train_block
 
 SMOKE = ["ppo=smoke", "threads=1", "tracking.enabled=false"]

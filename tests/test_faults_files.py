@@ -139,12 +139,12 @@ def test_f13_a_resume_point_with_a_nan_optimiser_state_is_refused(slot, value, t
 def test_a_damaged_sweep_plan_is_one_line_naming_it(content, tmp_path):
     from omegaconf import OmegaConf
 
-    from sigmarl.sweep.job import _job_config
+    from sigmarl.sweep.job import _job_configs
 
     plan = tmp_path / "plan.json"
     plan.write_bytes(content)
     with pytest.raises(SigmarlError) as e:
-        _job_config(OmegaConf.create({"study": {"plan": str(plan), "job": "M0/seed0"}}))
+        _job_configs(OmegaConf.create({"study": {"plan": str(plan), "job": "M0/seed0"}}))
     line = str(e.value)
     assert "\n" not in line and str(plan) in line and "run the sweep again" in line
 

@@ -246,6 +246,14 @@ class StudyConfig:
 
 
 @dataclass
+class SweepConfig:
+    """How `sigmarl sweep` packs its jobs (not a training setting: no fingerprint sees it)."""
+
+    seeds_per_job: int = 0
+    """Seeds of one variant each sweep job trains as one seed block (`sigmarl train seeds=[...]`). 0: by device, 1 on cpu (measured: a block seed costs 0.88-1.07 of a lone one there, benchmarks/bench_blocks.py), 64 on cuda (estimated; not yet measured)."""
+
+
+@dataclass
 class RulesConfig:
     """The paper's code where ours differs, one switch per difference: all off (`rules=ours`)
     is our environment, all on (`rules=paper`) the paper's. Evaluation keeps the dynamics and
@@ -305,6 +313,7 @@ class Config:
     resume: bool = False
     """`sigmarl train`: continue the run folder's training from its checkpoint."""
     study: StudyConfig = field(default_factory=StudyConfig)
+    sweep: SweepConfig = field(default_factory=SweepConfig)
     model: str = MISSING
     """The run's label: a study's variant, or (a lone train) M0..M5 or custom-<hash> from the obs flags."""
     overrides: list[str] = field(default_factory=list)

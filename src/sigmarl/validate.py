@@ -100,7 +100,31 @@ def check(cfg: Config) -> Config:
 
     tracker_class(cfg.tracking.backend)  # a backend that cannot be imported ends here, not after training
     _check_study(cfg)
+    if cfg.sweep.seeds_per_job < 0:
+        raise SigmarlError(f"sweep.seeds_per_job must be 0 (by device) or a number of seeds, got "
+                           f"{_short(cfg.sweep.seeds_per_job)}")
     return cfg
+
+
+CUDA_SEEDS_PER_JOB = 64  # estimated from the FLOPs of a minibatch step; no GPU has measured it yet
+
+
+def seeds_per_job(cfg: Config) -> int:
+    """The seeds one sweep job trains as a block: `sweep.seeds_per_job`, or by device (0). On
+    this CPU a block seed costs 0.88-1.07 of a lone one (benchmarks/bench_blocks.py, two runs),
+    so two lone jobs on two cores do as well; on a GPU many seeds cost little more than one."""
+    if cfg.sweep.seeds_per_job:
+        return cfg.sweep.seeds_per_job
+    return 1 if device_type(cfg.device) == "cpu" else CUDA_SEEDS_PER_JOB
+
+
+def block_refusal(cfg: Config) -> str | None:
+    """Why the seeds of `cfg` cannot train as one block, or None."""
+    if cfg.ppo.loss != "lean":
+        return "a seed block trains with ppo.loss=lean (torchrl's ClipPPOLoss is a lone run's)"
+    if not cfg.network.shared_critic_value:
+        return "a seed block needs network.shared_critic_value=true (a critic head per agent is not batched over seeds)"
+    return None
 
 
 def check_finite(node: object, prefix: str = "") -> None:

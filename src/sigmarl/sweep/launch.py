@@ -83,8 +83,9 @@ def end_orphaned_runs(plan: SweepPlan, tracker) -> None:
 def write_plan(plan: SweepPlan) -> Path:
     """The plan as a file in the sweep's folder, named by its content (two sweeps never share
     one by accident), written whole or not at all."""
-    entries = {j.key: {"overrides": j.overrides, "variant": j.variant, "fingerprint": j.fingerprint}
-               for j in plan.jobs}
+    entries: dict[str, dict] = {j.key: {"overrides": j.overrides, "variant": j.variant,
+                                        "fingerprint": j.fingerprint} for j in plan.jobs}
+    entries.update({u.key: {"members": [j.key for j in u.jobs]} for u in plan.units if len(u.jobs) > 1})
     text = json.dumps(entries, indent=1, sort_keys=True) + "\n"
     path = (PLANS / f"{hashlib.sha1(text.encode()).hexdigest()[:16]}.json").resolve()
     write_atomic(path, text)
@@ -92,10 +93,10 @@ def write_plan(plan: SweepPlan) -> Path:
 
 
 def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
-    """What Hydra's multirun gets: one job per plan entry, named by its key."""
+    """What Hydra's multirun gets: one job per unit of the plan (a seed or a seed block), named by its key."""
     users = [f"++hydra.job.env_set.{CONFIG_PATH}='{os.pathsep.join(map(str, user_conf_dirs()))}'"] \
         if user_conf_dirs() else []
-    return [*search_path_override(), *plan.fixed, *plan.hydra, "study.job=" + ",".join(j.key for j in plan.jobs),
+    return [*search_path_override(), *plan.fixed, *plan.hydra, "study.job=" + ",".join(u.key for u in plan.units),
             f"study.plan='{plan_file}'", "hydra.job.name=sweep", "hydra.sweep.subdir=${study.job}", *users]
 
 

@@ -2,7 +2,10 @@
 
 A typo or a bad value ends here in one line; so do two different training configs under one
 label, two jobs sharing a run folder, and a run folder that holds another config's run. Each
-variant is composed once, its seeds taken from that one composition."""
+variant is composed once, its seeds taken from that one composition.
+
+A job is one seed of one variant (its run folder, its record); what the launcher runs is a
+unit: one job, or `sweep.seeds_per_job` jobs of one variant trained as one seed block."""
 
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from sigmarl.ablation import check_eval
+from sigmarl.block_membership import check_membership
 from sigmarl.compose import compose_config, compose_seeds
 from sigmarl.config import Config, StudyConfig
 from sigmarl.errors import SigmarlError
@@ -23,7 +27,7 @@ from sigmarl.identity import check_label, differences, fingerprint
 from sigmarl.policy_input import check_variant
 from sigmarl.run import Run
 from sigmarl.sweep.command import Command, override_key, read_command, slug
-from sigmarl.validate import SEED_MAX
+from sigmarl.validate import SEED_MAX, block_refusal, seeds_per_job
 
 
 @dataclass
@@ -39,12 +43,21 @@ class Job:
 
 
 @dataclass
+class Unit:
+    """What one launcher job runs: one seed, or a seed block of one variant's seeds."""
+
+    key: str  # the plan's key and the multirun's sub-folder: <label>/seed<k> or <label>/seeds<a>_<b>_..
+    jobs: list[Job]
+
+
+@dataclass
 class SweepPlan:
     study: StudyConfig
     fixed: list[str]  # the user's overrides that every job shares
     hydra: list[str]  # Hydra's own settings (launcher, ...), for the multirun
     jobs: list[Job] = field(default_factory=list)
     config: Config | None = None  # the sweep's config without any variant (tracking, study)
+    units: list[Unit] = field(default_factory=list)
 
     @property
     def labels(self) -> list[str]:
@@ -60,11 +73,16 @@ def plan_sweep(user: Sequence[str], cores: int | None = None,
     variants = _variants(command, base)
     seeds = _seeds(command, base.study)
     plan = SweepPlan(base.study, command.fixed, command.hydra, config=base)
+    size = seeds_per_job(base)
     for name, own in _labelled(command, base.study, variants):
-        plan.jobs += _variant_jobs(name, [*command.fixed, *own, f"model={name}"], own,
-                                   (seeds_by_label or {}).get(name, seeds))
+        jobs = _variant_jobs(name, [*command.fixed, *own, f"model={name}"], own,
+                             (seeds_by_label or {}).get(name, seeds), size)
+        plan.jobs += jobs
+        plan.units += _units(jobs, size)
     _check_apart(plan.jobs)
-    plan.hydra += _launcher(command.hydra, len(plan.jobs), cores)
+    for unit in plan.units:  # a folder another block (or a lone run) trains in, refused before any job
+        check_membership([Run(j.run_dir) for j in unit.jobs], [j.seed for j in unit.jobs])
+    plan.hydra += _launcher(command.hydra, len(plan.units), cores)
     # `threads` is set in each job from what its launcher granted it (sigmarl.resources).
     return plan
 
@@ -129,13 +147,16 @@ def _labelled(command: Command, study: StudyConfig,
             yield name, [*variant, *(f"{key}={v}" for key, v in zip(keys, combo, strict=True))]
 
 
-def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: list[int]) -> list[Job]:
+def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: list[int],
+                  size: int = 1) -> list[Job]:
     """The variant's jobs, one per seed, from one composition; each checked against the run
-    its run folder already holds."""
+    its run folder already holds, and, trained in blocks of `size`, against what a block needs."""
     try:
         configs = compose_seeds(overrides, seeds) if seeds else []
     except SigmarlError as e:
         raise SigmarlError(f"variant {label}: {e}") from e
+    if size > 1 and len(configs) > 1 and (refusal := block_refusal(configs[0])):
+        raise SigmarlError(f"variant {label}: {refusal}; or give sweep.seeds_per_job=1")
     jobs = []
     for seed, cfg in zip(seeds, configs, strict=True):
         check_variant(cfg, check_eval(cfg.eval), label)  # before training, not after it
@@ -146,6 +167,17 @@ def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: l
         jobs.append(Job(f"{label}/seed{seed}", label, seed, [*overrides, f"seed={seed}"], variant, cfg.run_dir,
                         cfg.fingerprint, eval_key(cfg.eval)))
     return jobs
+
+
+def _units(jobs: list[Job], size: int) -> list[Unit]:
+    """One variant's jobs in blocks of `size` seeds, in seed order as given; a lone seed is its
+    own job's unit. A re-run of the same sweep makes the same blocks, so each resumes whole."""
+    units = []
+    for i in range(0, len(jobs), size):
+        part = jobs[i:i + size]
+        key = part[0].key if len(part) == 1 else f"{part[0].label}/seeds" + "_".join(str(j.seed) for j in part)
+        units.append(Unit(key, part))
+    return units
 
 
 def _check_apart(jobs: list[Job]) -> None:

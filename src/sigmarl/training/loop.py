@@ -21,6 +21,7 @@ from typing import Any
 import torch
 
 from sigmarl import crash
+from sigmarl.block_membership import block_name, check_membership, write_membership
 from sigmarl.config import Config, PPOConfig, as_dict
 from sigmarl.env.factory import check_room
 from sigmarl.errors import SigmarlError
@@ -31,18 +32,12 @@ from sigmarl.progress import Progress
 from sigmarl.run import Run
 from sigmarl.tracking import Tracker, flatten, open_tracker
 from sigmarl.training import checkpoint as ckpt
-from sigmarl.training.block_record import (
-    block_name,
-    check_membership,
-    commit_checkpoints,
-    settle_checkpoints,
-    write_membership,
-)
+from sigmarl.training.block_record import commit_checkpoints, settle_checkpoints
 from sigmarl.training.lone import LoneLearner, iteration_seed
 from sigmarl.training.networks import make_actor
 from sigmarl.training.ppo_loss import resolve_precision
 from sigmarl.training.seed_run import SeedRun, finish_records
-from sigmarl.validate import check
+from sigmarl.validate import block_refusal, check
 
 __all__ = ["TrainResult", "iteration_seed", "learning_rate", "load_policy", "train", "train_block"]
 
@@ -187,11 +182,8 @@ def _check_block(cfgs: Sequence[Config]) -> None:
         if c.fingerprint != first.fingerprint or c.model != first.model:
             raise SigmarlError(f"a seed block trains one config; seed {c.seed} differs from seed {first.seed} "
                                f"({differences(first, c) or 'label ' + c.model})")
-    if len(cfgs) > 1 and first.ppo.loss != "lean":
-        raise SigmarlError("a seed block trains with ppo.loss=lean (torchrl's ClipPPOLoss is a lone run's)")
-    if len(cfgs) > 1 and not first.network.shared_critic_value:
-        raise SigmarlError("a seed block needs network.shared_critic_value=true (a critic head per agent "
-                           "is not batched over seeds)")
+    if len(cfgs) > 1 and (refusal := block_refusal(first)):
+        raise SigmarlError(refusal)
 
 
 def _train(cfgs: list[Config], trackers: Sequence[Tracker] | None, batched: bool) -> list[TrainResult]:

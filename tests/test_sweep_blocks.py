@@ -1,0 +1,127 @@
+"""`sweep.seeds_per_job=S`: each sweep job trains S seeds of one variant as one seed block,
+and the sweep's records are those of lone jobs (one run folder, one MLflow run per seed)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from sigmarl.errors import SigmarlError
+from sigmarl.sweep import plan_sweep
+
+OFF = "tracking.enabled=false"
+
+
+def test_jobs_are_packed_into_blocks_of_one_variant(tmp_path):
+    plan = plan_sweep(["models=[M0,M4]", "seeds=range(5)", "sweep.seeds_per_job=3", OFF,
+                       f"runs_root={tmp_path}"], cores=16)
+    assert [u.key for u in plan.units] == ["M0/seeds0_1_2", "M0/seeds3_4", "M4/seeds0_1_2", "M4/seeds3_4"]
+    assert [[j.seed for j in u.jobs] for u in plan.units] == [[0, 1, 2], [3, 4]] * 2
+    assert all(len({j.label for j in u.jobs}) == 1 for u in plan.units)
+    assert len(plan.jobs) == 10  # still a job per seed: its folder, its record, its summary line
+    assert "hydra.launcher.n_jobs=4" in plan.hydra  # a worker per block, not per seed
+
+
+def test_a_block_is_its_seeds_and_a_lone_seed_its_own_job(tmp_path):
+    plan = plan_sweep(["models=[M0]", "seeds=[4,2,7]", "sweep.seeds_per_job=2", OFF, f"runs_root={tmp_path}"])
+    assert [u.key for u in plan.units] == ["M0/seeds4_2", "M0/seed7"]
+
+
+@pytest.mark.parametrize(("device", "size"), [("cpu", 1), ("cuda", 64), ("cuda:1", 64)])
+def test_the_default_block_is_chosen_by_device(device, size, tmp_path):
+    """0 (the default): lone jobs on a CPU, where a block seed measured 0.88-1.07 of a lone one;
+    blocks on a GPU. Planning never touches the device, so a GPU sweep plans on a laptop."""
+    plan = plan_sweep(["models=[M0]", "seeds=range(70)", f"device={device}", OFF, f"runs_root={tmp_path}"])
+    assert {len(u.jobs) for u in plan.units[:-1]} == {size}
+    assert len(plan.units) == -(-70 // size)
+
+
+def test_what_a_block_cannot_batch_is_refused_at_planning(tmp_path):
+    with pytest.raises(SigmarlError, match=r"variant M0: a seed block trains with ppo.loss=lean.*seeds_per_job=1"):
+        plan_sweep(["models=[M0]", "seeds=[0,1]", "sweep.seeds_per_job=2", "ppo.loss=torchrl", OFF,
+                    f"runs_root={tmp_path}"])
+    # one seed per job is a lone run, which may use torchrl's loss
+    assert len(plan_sweep(["models=[M0]", "seeds=[0]", "sweep.seeds_per_job=2", "ppo.loss=torchrl", OFF,
+                           f"runs_root={tmp_path}"]).units) == 1
+
+
+def test_a_negative_block_size_is_one_line(tmp_path):
+    with pytest.raises(SigmarlError, match="sweep.seeds_per_job must be 0"):
+        plan_sweep(["sweep.seeds_per_job=-2", OFF, f"runs_root={tmp_path}"])
+
+
+def test_the_block_size_is_not_a_training_setting(tmp_path):
+    lone = plan_sweep(["models=[M0]", "seeds=[0,1]", OFF, f"runs_root={tmp_path}"])
+    block = plan_sweep(["models=[M0]", "seeds=[0,1]", "sweep.seeds_per_job=2", OFF, f"runs_root={tmp_path}"])
+    assert [j.fingerprint for j in lone.jobs] == [j.fingerprint for j in block.jobs]
+
+
+def test_a_folder_a_lone_run_trains_in_is_refused_before_any_job(tmp_path):
+    """A re-run with a different packing must not take over a half-trained lone run."""
+    seed1 = tmp_path / "M0" / "seed1"
+    seed1.mkdir(parents=True)
+    (seed1 / "checkpoint.pt").write_bytes(b"a lone run's resume point")
+    with pytest.raises(SigmarlError, match=r"seed1 holds a lone training run; a block cannot take it over"):
+        plan_sweep(["models=[M0]", "seeds=[0,1]", "sweep.seeds_per_job=2", OFF, f"runs_root={tmp_path}"])
+
+
+def test_a_plan_entry_of_a_block_naming_no_seeds_is_one_line(tmp_path):
+    from omegaconf import OmegaConf
+
+    from sigmarl.sweep.job import _job_configs
+
+    plan = tmp_path / "plan.json"
+    plan.write_text(json.dumps({"M0/seeds0_1": {"members": ["M0/seed0", "M0/seed1"]}}))
+    with pytest.raises(SigmarlError, match=r"plan entry of block 'M0/seeds0_1' does not name its seeds' entries"):
+        _job_configs(OmegaConf.create({"study": {"plan": str(plan), "job": "M0/seeds0_1"}}))
+
+
+def _sweep(folder: Path, *extra: str) -> subprocess.CompletedProcess:
+    folder.mkdir()
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    return subprocess.run([sys.executable, "-m", "sigmarl", "sweep", "study=quick", "models=[M0]", "seeds=[0,1]",
+                           "ppo.iterations=2", "eval.n_sims=2", "eval.steps=40", "study.scenarios=[Intersection,CPM]",
+                           "hydra.launcher.n_jobs=1", *extra],
+                          cwd=folder, env=env, capture_output=True, text=True, timeout=600)
+
+
+@pytest.mark.slow
+def test_a_sweep_of_blocks_trains_evaluates_and_reports_as_lone_jobs(tmp_path):
+    lone, block = tmp_path / "lone", tmp_path / "block"
+    for folder, extra in ((lone, ()), (block, ("sweep.seeds_per_job=2",))):
+        done = _sweep(folder, *extra)
+        assert done.returncode == 0, done.stderr[-3000:]
+    runs = Path("runs") / "sigmarl-quick" / "M0"
+    for seed in (0, 1):
+        a, b = lone / runs / f"seed{seed}", block / runs / f"seed{seed}"
+        assert not (a / "block.json").exists()
+        assert json.loads((b / "block.json").read_text())["seeds"] == [0, 1]
+        # the same files as a lone run, plus the block's record
+        assert {p.name for p in b.iterdir()} - {p.name for p in a.iterdir()} == {"block.json"}
+        ma, mb = pd.read_csv(a / "metrics.csv"), pd.read_csv(b / "metrics.csv")
+        pd.testing.assert_series_equal(ma["iteration"], mb["iteration"])
+        for column in ("reward_mean", "loss_critic"):
+            assert mb[column].to_numpy() == pytest.approx(ma[column].to_numpy(), rel=1e-3, abs=1e-5), column
+        rows_a, rows_b = pd.read_csv(a / "evaluation_rows.csv"), pd.read_csv(b / "evaluation_rows.csv")
+        assert list(rows_a.columns) == list(rows_b.columns) and len(rows_a) == len(rows_b)
+    assert (block / "multirun" / "sigmarl-quick" / "M0" / "seeds0_1").is_dir()
+    # the report reads block seeds as lone ones; MLflow holds a training run per seed, tagged with its block
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    report = subprocess.run([sys.executable, "-m", "sigmarl", "report", "study=quick",
+                             "study.scenarios=[Intersection,CPM]", "--out", "report"],
+                            cwd=block, env=env, capture_output=True, text=True, timeout=300)
+    assert report.returncode == 0, report.stderr[-3000:]
+    seeds = pd.read_csv(block / "report" / "seeds.csv")
+    assert sorted(seeds["seed"].unique()) == [0, 1]
+    import mlflow
+
+    client = mlflow.MlflowClient(f"sqlite:///{block / 'mlflow.db'}")
+    experiment = client.get_experiment_by_name("sigmarl-quick")
+    training = client.search_runs([experiment.experiment_id], "tags.block = 'M0 seeds 0,1'")
+    assert len(training) == 2
