@@ -89,8 +89,9 @@ def test_a_sweep_and_its_report_run_on_cuda(tmp_path, monkeypatch) -> None:
     tiny = ["study=quick", "models=[M0]", "seeds=[0,1]", "ppo.iterations=1", "ppo.frames_per_iteration=128",
             "ppo.epochs=1", "ppo.minibatch_size=64", "hydra.launcher.n_jobs=1", *EVAL]
     assert main(["sweep", *tiny, "device=cuda", f"runs_root={runs}"]) == 0
-    for s in (0, 1):
+    for s in (0, 1):  # on cuda the default packs a variant's seeds into one block job
         assert (runs / "M0" / f"seed{s}" / ROWS_FILE).exists()
+        assert json.loads((runs / "M0" / f"seed{s}" / BLOCK_FILE).read_text())["seeds"] == [0, 1]
     out = tmp_path / "report"
     assert main(["report", "study=quick", "--from", str(runs), "tracking.enabled=false", "--no-figures",
                  "--out", str(out)]) == 0
