@@ -107,6 +107,12 @@ def test_mlflow_holds_params_tags_metric_histories_and_artifacts(runs) -> None:
     assert run.data.tags["seed"] == "0"
     assert run.data.params["ppo.lr"] == "0.0002" and run.data.params["ppo.iterations"] == "3"
     assert run.data.params["network.hidden"] == "[256, 256]"
+    # the composed training config and what names the run, not the study's, evaluation's or store's keys
+    params = run.data.params
+    assert params["env.reward.progress"] and params["rules.drag_dynamics"] == "False" and params["map.route_set"]
+    assert not [k for k in params if k.split(".")[0] in ("study", "eval", "tracking", "sweep")]
+    assert "map.ramp_angle" not in params  # the CPM map is not built from an on-ramp's keys
+    assert len(params) < 90
     for key in ("episode_reward_mean", *LOSSES, "lr", "frames_per_s",
                 "train_agent_collision", "train_lane_collision"):
         history = client.get_metric_history(run.info.run_id, key)

@@ -16,8 +16,9 @@ from pathlib import Path
 from typing import Any
 
 from sigmarl.ablation import obs_strategies
-from sigmarl.config import Config, as_dict
+from sigmarl.config import MAP_KEYS, Config, as_dict
 from sigmarl.errors import SigmarlError, raise_if_interrupted
+from sigmarl.identity import TRAINING_GROUPS
 from sigmarl.run import REWARD_COLUMN
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import experiment_id
@@ -39,6 +40,20 @@ def _has_run(client: Any, run_id: str) -> bool:
             return False
         raise
     return True
+
+
+RUN_PARAMS = ("seed", "model", "fingerprint", "device", "threads", "run_dir")
+
+
+def training_params(cfg: Config) -> dict[str, str]:
+    """A training run's MLflow params: the composed training config (every key of the groups
+    the fingerprint covers, the map's only where its kind is built from them) and what names
+    the run. Where it is tracked, evaluated or swept, and the study's other variants, are not
+    this run's settings (the study, overrides and resolved precision are its tags)."""
+    values = as_dict(cfg)
+    groups = {g: values[g] for g in TRAINING_GROUPS}
+    groups["map"] = {k: v for k, v in groups["map"].items() if k in ("name", "kind", *MAP_KEYS.get(cfg.map.kind, ()))}
+    return {**flatten(groups), **{k: str(values[k]) for k in RUN_PARAMS}}
 
 
 class MlflowTrainingRun(TrainingRun):
@@ -93,7 +108,7 @@ class MlflowTrainingRun(TrainingRun):
                 "(set tracking.tracking_uri=..., or tracking.enabled=false to train without it)"
             ) from e
         tracker = cls(client, run.info.run_id)
-        tracker.log_params(flatten(as_dict(cfg)))
+        tracker.log_params(training_params(cfg))
         return tracker
 
     def _guard(self, method: str, *args: Any, **kwargs: Any) -> Any:
