@@ -6,11 +6,12 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shlex
 import sys
 import warnings
-from collections.abc import Sequence
-from contextlib import nullcontext
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
 import hydra
@@ -51,16 +52,53 @@ def launch(plan: SweepPlan) -> int:
     argv = sys.argv
     sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override(), *sweep_owner_override()]
     try:
-        with tracker.study() if tracker is not None else nullcontext():
+        with tracker.study() if tracker is not None else nullcontext(), _launcher_errors_raised():
             main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
             main()
-    except BaseException:
+    except BaseException as e:
         if tracker is not None:
             end_orphaned_runs(plan, tracker)
-        raise
+        if not isinstance(e, Exception) or full_errors:
+            raise
+        # the launcher itself failed (a worker lost to SIGKILL, a cluster refusing jobs): one
+        # line, then the summary from the run folders; a re-run resumes what was cut short
+        print(f"sigmarl sweep: {launcher_failure(e)}", file=sys.stderr)
+        summarise(plan)
+        return 1
     finally:
         sys.argv = argv
     return summarise(plan)
+
+
+full_errors = bool(os.environ.get("HYDRA_FULL_ERROR"))  # the user asked for Hydra's tracebacks
+
+
+@contextmanager
+def _launcher_errors_raised() -> Iterator[None]:
+    """Hydra prints a launcher's exception as a traceback and exits; under HYDRA_FULL_ERROR it
+    raises it instead, for `launch` to answer in one line."""
+    before = os.environ.get("HYDRA_FULL_ERROR")
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("HYDRA_FULL_ERROR", None)
+        else:
+            os.environ["HYDRA_FULL_ERROR"] = before
+
+
+def launcher_failure(e: Exception) -> str:
+    """What a launcher's exception means, in one line."""
+    first = (str(e).strip().splitlines() or [""])[0]
+    if type(e).__name__ == "TerminatedWorkerError":  # loky: a worker died; it ends the others
+        codes = re.search(r"exit codes of the workers are (\{[^}]*\})", str(e))
+        return ("a worker process died" + (f" (exit {codes.group(1)})" if codes else "")
+                + ", killed from outside (SIGKILL: the OOM killer?); joblib then ended the sweep's other "
+                "workers. Their runs are ended KILLED and resume when the sweep runs again (fewer "
+                "jobs at once, hydra.launcher.n_jobs=..., if memory ran out)")
+    return (f"the launcher failed: {type(e).__name__}: {first[:300]} (HYDRA_FULL_ERROR=1 shows the traceback); "
+            "finished jobs are kept and the sweep resumes the rest when run again")
 
 
 def end_orphaned_runs(plan: SweepPlan, tracker) -> None:
