@@ -1,6 +1,7 @@
 """The paper's vocabulary: its five observation strategies (the one list every module reads),
-its six models' presets, and the labels of a lone run derived from its flags (`model_label`);
-plus the check of an evaluation's settings.
+its six models' presets, and the labels of a lone run derived from its flags (`model_label`).
+It imports no config module (sigmarl.config imports it, for the label resolver): the flags are
+read from an ObsConfig, or the mapping Hydra hands the resolver, by name.
 
 A study's own labels are its variants (`conf/study/*.yaml`); M0..M5 name the paper's models
 and label a `sigmarl train` outside a study.
@@ -9,14 +10,8 @@ and label a `sigmarl train` outside a study.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
-
-from sigmarl.errors import SigmarlError
-from sigmarl.scenarios import check_fits, scenario_names
-
-if TYPE_CHECKING:  # sigmarl.config imports this module
-    from sigmarl.config import EvalConfig, ObsConfig
+from collections.abc import Mapping
+from typing import Any
 
 # The paper's five observation strategies: config flag -> the paper's short name.
 OBS_FLAGS: dict[str, str] = {
@@ -35,20 +30,20 @@ PRESET_TO_MODEL = {preset: model for model, preset in MODELS.items()}
 # a training iteration's timed phases (metrics.csv columns and MLflow metrics); their sum is its compute time
 TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")
 
-def _on(obs: ObsConfig | Mapping[str, Any], flag: str) -> bool:
+def _on(obs: object | Mapping[str, Any], flag: str) -> bool:
     return bool(obs[flag] if isinstance(obs, Mapping) else getattr(obs, flag))
 
 
-def obs_strategies(obs: ObsConfig | Mapping[str, Any]) -> str:
+def obs_strategies(obs: object | Mapping[str, Any]) -> str:
     """The strategies switched on, in the paper's order: "E,V,DA,DB,DC" for M0."""
     return ",".join(short for flag, short in OBS_FLAGS.items() if _on(obs, flag))
 
 
-def model_label(obs: ObsConfig | Mapping[str, Any]) -> str:
+def model_label(obs: object | Mapping[str, Any]) -> str:
     """M0 with all five strategies on, M1..M5 with exactly the paper's one left out, and
     "custom-<6 hex>" (a hash of the strategies that are on) for any other combination.
 
-    `obs` is an ObsConfig, or the flags as a mapping (the `obs` node that the config's
+    `obs` is an ObsConfig (any object with the five flags), or the flags as a mapping (the `obs` node that the config's
     `${sigmarl_model:${obs}}` resolver receives while Hydra composes)."""
     off = [flag for flag in OBS_FLAGS if not _on(obs, flag)]
     if not off:
@@ -56,21 +51,3 @@ def model_label(obs: ObsConfig | Mapping[str, Any]) -> str:
     if len(off) == 1:
         return PRESET_TO_MODEL[f"no_{off[0]}"]
     return "custom-" + hashlib.sha1(obs_strategies(obs).encode()).hexdigest()[:6]
-
-
-def check_eval(eval_cfg: EvalConfig, scenarios: Sequence[str] | None = None) -> list[str]:
-    """The scenarios to evaluate on, after checking the evaluation settings: one clear
-    SigmarlError for a bad value, so a sweep can refuse before it trains anything."""
-    for key in ("n_sims", "steps"):
-        if int(getattr(eval_cfg, key)) <= 0:
-            raise SigmarlError(f"eval.{key} must be positive, got {getattr(eval_cfg, key)}")
-    if str(eval_cfg.checkpoint) not in ("best", "final"):
-        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {eval_cfg.checkpoint!r}")
-    names = [str(s) for s in (scenarios if scenarios is not None else eval_cfg.scenarios)]
-    if not names:
-        raise SigmarlError(f"eval.scenarios is empty; choose from {', '.join(scenario_names())}")
-    for name in names:
-        check_fits(name)  # an unknown name, a malformed file, a missing map or too many agents: one line
-    if len(set(names)) != len(names):
-        raise SigmarlError(f"eval.scenarios names a scenario twice: {', '.join(names)}")
-    return names

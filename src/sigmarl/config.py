@@ -33,16 +33,6 @@ from sigmarl.reward_config import RewardConfig
 from sigmarl.scenarios import PAPER_SCENARIOS
 from sigmarl.vehicle_config import VehicleConfig
 
-# The MapConfig keys each kind of map is built from (`sigmarl.maps.load_map`); the others do
-# not shape that map, and a training run's MLflow params leave them out.
-MAP_KEYS = {
-    "cpm": ("route_set",),
-    "intersection": ("lane_width", "arm_length", "arm_lengths", "n_arms", "junction_offset"),
-    "roundabout": ("lane_width", "arm_length", "arm_lengths", "n_arms", "radius", "entry_radius"),
-    "on_ramp": ("lane_width", "n_ramps", "main_length", "ramp_drop", "ramp_angle", "ramp_radius"),
-    "osm": ("lane_width", "path", "routes"),
-}
-
 
 @dataclass
 class MapConfig:

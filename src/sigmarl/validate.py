@@ -13,14 +13,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from typing import Literal, get_args
 
-from sigmarl.ablation import check_eval
-from sigmarl.config import Config, MapConfig
+from sigmarl.config import Config, EvalConfig, MapConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import check_label
 from sigmarl.metrics import metric
 from sigmarl.reward_config import check_reward
+from sigmarl.scenarios import check_fits, scenario_names
 from sigmarl.tracking.tracker import tracker_class
 from sigmarl.vehicle_config import check_vehicle
 
@@ -236,3 +237,21 @@ def _check_experiment(name: str) -> None:
 def _short(n: int) -> str:
     """`n`, or its size where printing it would flood the line (or exceed Python's int-to-str limit)."""
     return str(n) if n.bit_length() < 128 else f"a number of {n.bit_length()} bits"
+
+
+def check_eval(eval_cfg: EvalConfig, scenarios: Sequence[str] | None = None) -> list[str]:
+    """The scenarios to evaluate on, after checking the evaluation settings: one clear
+    SigmarlError for a bad value, so a sweep can refuse before it trains anything."""
+    for key in ("n_sims", "steps"):
+        if int(getattr(eval_cfg, key)) <= 0:
+            raise SigmarlError(f"eval.{key} must be positive, got {getattr(eval_cfg, key)}")
+    if str(eval_cfg.checkpoint) not in ("best", "final"):
+        raise SigmarlError(f"eval.checkpoint must be 'best' or 'final', got {eval_cfg.checkpoint!r}")
+    names = [str(s) for s in (scenarios if scenarios is not None else eval_cfg.scenarios)]
+    if not names:
+        raise SigmarlError(f"eval.scenarios is empty; choose from {', '.join(scenario_names())}")
+    for name in names:
+        check_fits(name)  # an unknown name, a malformed file, a missing map or too many agents: one line
+    if len(set(names)) != len(names):
+        raise SigmarlError(f"eval.scenarios names a scenario twice: {', '.join(names)}")
+    return names

@@ -14,10 +14,7 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl import crash
-from sigmarl.ablation import (
-    check_eval,
-    obs_strategies,
-)
+from sigmarl.ablation import obs_strategies
 from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.env.paper_rules import rules_label
 from sigmarl.eval_key import RULES_REVISION, eval_key
@@ -32,6 +29,7 @@ from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker, open_tracker
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training.loop import load_policy
+from sigmarl.validate import check_eval
 
 
 def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] | None = None,

@@ -17,7 +17,6 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from sigmarl.ablation import check_eval
 from sigmarl.block_membership import check_membership
 from sigmarl.compose import compose_config, compose_seeds
 from sigmarl.config import Config, StudyConfig
@@ -27,7 +26,7 @@ from sigmarl.identity import check_label, differences, fingerprint
 from sigmarl.policy_input import check_variant
 from sigmarl.run import Run
 from sigmarl.sweep.command import Command, override_key, read_command, slug
-from sigmarl.validate import SEED_MAX, block_refusal, seeds_per_job
+from sigmarl.validate import SEED_MAX, block_refusal, check_eval, seeds_per_job
 
 
 @dataclass

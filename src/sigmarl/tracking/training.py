@@ -16,9 +16,10 @@ from pathlib import Path
 from typing import Any
 
 from sigmarl.ablation import obs_strategies
-from sigmarl.config import MAP_KEYS, Config, as_dict
+from sigmarl.config import Config, as_dict
 from sigmarl.errors import SigmarlError, raise_if_interrupted
 from sigmarl.identity import TRAINING_GROUPS
+from sigmarl.maps import MAP_KEYS
 from sigmarl.run import REWARD_COLUMN
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import experiment_id
