@@ -215,6 +215,7 @@ def test_an_interrupted_parallel_sweep_leaves_no_training_run_running(tmp_path, 
     assert sweep.returncode != 0
     if how == "sigkill to a worker":  # F17: one line and the summary, no joblib traceback
         assert "a worker process died" in err and "Traceback" not in err, err[-2000:]
+        assert "while training one of M0/seed0, M0/seed1" in err, err[-2000:]
         assert "sweep summary:" in out and out.count("unfinished (run the sweep again to resume)") == 2, out
     client = MlflowClient(store.split("=", 1)[1])
     exp = client.get_experiment_by_name("sigmarl-quick")

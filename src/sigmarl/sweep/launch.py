@@ -62,7 +62,8 @@ def launch(plan: SweepPlan) -> int:
             raise
         # the launcher itself failed (a worker lost to SIGKILL, a cluster refusing jobs): one
         # line, then the summary from the run folders; a re-run resumes what was cut short
-        print(f"sigmarl sweep: {launcher_failure(e)}", file=sys.stderr)
+        started = [j.key for j in plan.jobs if Run(j.run_dir).config_file.is_file() and not finished(j)]
+        print(f"sigmarl sweep: {launcher_failure(e, started)}", file=sys.stderr)
         summarise(plan)
         return 1
     finally:
@@ -88,12 +89,13 @@ def _launcher_errors_raised() -> Iterator[None]:
             os.environ["HYDRA_FULL_ERROR"] = before
 
 
-def launcher_failure(e: Exception) -> str:
-    """What a launcher's exception means, in one line."""
+def launcher_failure(e: Exception, started: Sequence[str] = ()) -> str:
+    """What a launcher's exception means, in one line; `started`: the jobs it cut short."""
     first = (str(e).strip().splitlines() or [""])[0]
     if type(e).__name__ == "TerminatedWorkerError":  # loky: a worker died; it ends the others
         codes = re.search(r"exit codes of the workers are (\{[^}]*\})", str(e))
-        return ("a worker process died" + (f" (exit {codes.group(1)})" if codes else "")
+        during = f" while training one of {', '.join(started)}" if started else ""
+        return ("a worker process died" + (f" (exit {codes.group(1)})" if codes else "") + during
                 + ", killed from outside (SIGKILL: the OOM killer?); joblib then ended the sweep's other "
                 "workers. Their runs are ended KILLED and resume when the sweep runs again (fewer "
                 "jobs at once, hydra.launcher.n_jobs=..., if memory ran out)")
