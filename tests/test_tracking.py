@@ -159,3 +159,41 @@ def test_a_sigterm_inside_a_store_call_is_raised_when_the_call_has_ended(
     finally:
         signal.signal(signal.SIGTERM, previous[0])
         signal.signal(signal.SIGINT, previous[1])
+
+
+def _nudged(value):
+    """A value near `value` that a builder would build differently from."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, list)):
+        raise TypeError(value)
+    if isinstance(value, list):
+        return [round(v * 1.05, 6) for v in value] or [1.3, 1.1]
+    return value - 1 if isinstance(value, int) else round(value * 1.05, 6)
+
+
+PROCEDURAL = ("lane_width", "arm_length", "arm_lengths", "n_arms", "junction_offset", "radius", "entry_radius",
+              "n_ramps", "main_length", "ramp_drop", "ramp_angle", "ramp_radius")
+
+
+@pytest.mark.parametrize("kind", ["intersection", "roundabout", "on_ramp"])
+def test_the_map_params_are_the_keys_the_map_is_built_from(kind):
+    """A training run's MLflow params leave out the map keys its kind ignores: each key left out
+    leaves the built map as it is, and each kept one changes it (arm_length only where no
+    arm_lengths are given, which these maps give)."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from sigmarl.compose import compose_config
+    from sigmarl.maps import load_map
+    from sigmarl.tracking.training import MAP_KEYS
+
+    base = compose_config([f"map={kind}"]).map
+
+    def drawn(cfg):
+        return [np.round(np.stack([lane.left, lane.right]), 9).tolist() for lane in load_map(cfg).lanelets.values()]
+
+    before = drawn(base)
+    for key in PROCEDURAL:
+        same = drawn(replace(base, **{key: _nudged(getattr(base, key))})) == before
+        shadowed = key == "arm_length" and base.arm_lengths
+        assert same == (key not in MAP_KEYS[kind] or bool(shadowed)), (kind, key)

@@ -10,17 +10,7 @@ from sigmarl.maps.model import Lanelet, RoadMap, Route
 if TYPE_CHECKING:
     from sigmarl.config import MapConfig
 
-__all__ = ["MAP_KEYS", "Lanelet", "MapError", "RoadMap", "Route", "load_map"]
-
-# The MapConfig keys each kind of map is built from (`sigmarl.maps.load_map`); the others do
-# not shape that map, and a training run's MLflow params leave them out.
-MAP_KEYS = {
-    "cpm": ("route_set",),
-    "intersection": ("lane_width", "arm_length", "arm_lengths", "n_arms", "junction_offset"),
-    "roundabout": ("lane_width", "arm_length", "arm_lengths", "n_arms", "radius", "entry_radius"),
-    "on_ramp": ("lane_width", "n_ramps", "main_length", "ramp_drop", "ramp_angle", "ramp_radius"),
-    "osm": ("lane_width", "path", "routes"),
-}
+__all__ = ["Lanelet", "MapError", "RoadMap", "Route", "load_map"]
 
 
 def load_map(cfg: MapConfig) -> RoadMap:

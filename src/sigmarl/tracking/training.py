@@ -19,7 +19,6 @@ from sigmarl.ablation import obs_strategies
 from sigmarl.config import Config, as_dict
 from sigmarl.errors import SigmarlError, raise_if_interrupted
 from sigmarl.identity import TRAINING_GROUPS
-from sigmarl.maps import MAP_KEYS
 from sigmarl.run import REWARD_COLUMN
 from sigmarl.tracking.meta import flatten, git_commit
 from sigmarl.tracking.store import experiment_id
@@ -41,6 +40,18 @@ def _has_run(client: Any, run_id: str) -> bool:
             return False
         raise
     return True
+
+
+# The MapConfig keys each kind of map is built from (`sigmarl.maps.load_map` and its builders);
+# the others do not shape that map, and a training run's MLflow params leave them out. Kept here,
+# not in sigmarl.maps, which imports torch: the tracker is opened before torch is needed.
+MAP_KEYS = {
+    "cpm": ("route_set",),
+    "intersection": ("lane_width", "arm_length", "arm_lengths", "n_arms", "junction_offset"),
+    "roundabout": ("lane_width", "arm_length", "arm_lengths", "n_arms", "radius", "entry_radius"),
+    "on_ramp": ("lane_width", "n_ramps", "main_length", "ramp_drop", "ramp_angle", "ramp_radius"),
+    "osm": ("lane_width", "path", "routes"),
+}
 
 
 RUN_PARAMS = ("seed", "model", "fingerprint", "device", "threads", "run_dir")
