@@ -185,6 +185,12 @@ def test_a_resume_that_would_compute_in_another_precision_is_refused(tmp_path):
     assert train(compose_config([*overrides, "resume=true"])).finished
 
 
+def _ctrl_c_reaches_it() -> None:
+    """A suite started as a shell's `cmd &` runs with SIGINT ignored, which its processes inherit
+    (and keep, as sigmarl does on purpose): the sweep here starts as from a terminal."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("how", ["ctrl-c to the group", "sigterm to the main process", "sigkill to a worker"])
 def test_an_interrupted_parallel_sweep_leaves_no_training_run_running(tmp_path, how):
@@ -199,7 +205,8 @@ def test_an_interrupted_parallel_sweep_leaves_no_training_run_running(tmp_path, 
         [sys.executable, "-m", "sigmarl.cli", "sweep", "study=quick", "models=[M0]", "seeds=[0,1]", "ppo=smoke",
          "ppo.iterations=40", "ppo.checkpoint_every=1", "eval.n_sims=1", "eval.steps=5", "eval.scenarios=[Roundabout]",
          store, f"runs_root={tmp_path}/runs", "hydra.launcher.n_jobs=2"],
-        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        preexec_fn=_ctrl_c_reaches_it)
     runs = [tmp_path / "runs" / "M0" / f"seed{k}" for k in (0, 1)]
     deadline = time.time() + 300
     while not all((r / RESUME_FILE).exists() for r in runs) and time.time() < deadline:
