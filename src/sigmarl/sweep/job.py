@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 import sys
 import traceback
 from dataclasses import replace
@@ -14,7 +15,7 @@ import torch
 from hydra.core.singleton import Singleton
 from omegaconf import DictConfig
 
-from sigmarl.compose import compose_config
+from sigmarl.compose import compose_config, compose_seeds
 from sigmarl.config import Config, as_config
 from sigmarl.errors import SigmarlError, handle_sigterm, interruption, raise_if_interrupted
 from sigmarl.eval_key import eval_key
@@ -162,7 +163,7 @@ def _job_configs(cfg: DictConfig | Config) -> list[Config]:
     entries = _plan_entries(Path(plan), key)
     state = Singleton.get_state()  # composing here must not disturb the running Hydra job
     try:
-        jobs = [compose_config(entry["overrides"]) for entry in entries]
+        jobs = _compose_entries(entries)
     finally:
         Singleton.set_state(state)
     for job, entry in zip(jobs, entries, strict=True):
@@ -170,6 +171,23 @@ def _job_configs(cfg: DictConfig | Config) -> list[Config]:
             raise SigmarlError(f"job {key}: its config changed since the sweep was planned "
                                "(config files edited?); run the sweep again")
     return [replace(job, overrides=list(entry["variant"])) for job, entry in zip(jobs, entries, strict=True)]
+
+
+def _compose_entries(entries: list[dict]) -> list[Config]:
+    """The entries' configs: a block's seeds in one Hydra composition (their overrides, as the
+    plan writes them, differ only in the last, `seed=<k>`), else one composition per entry."""
+    shared = entries[0]["overrides"][:-1]
+    seeds = [_last_seed(entry["overrides"], shared) for entry in entries]
+    if len(entries) > 1 and None not in seeds:
+        return compose_seeds(shared, seeds)
+    return [compose_config(entry["overrides"]) for entry in entries]
+
+
+def _last_seed(overrides: list[str], shared: list[str]) -> int | None:
+    last = overrides[-1] if overrides else ""
+    if overrides[:-1] != shared or not re.fullmatch(r"seed=\d+", last):
+        return None
+    return int(last.split("=", 1)[1])
 
 
 def _plan_entries(plan: Path, key: str) -> list[dict]:

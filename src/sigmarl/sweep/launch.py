@@ -49,6 +49,7 @@ def launch(plan: SweepPlan) -> int:
     # lazy: the jobs' torch only once jobs run; a finished sweep is answered from its run folders
     from sigmarl.sweep.job import run_job
 
+    full_errors = bool(os.environ.get("HYDRA_FULL_ERROR"))  # the user asked for Hydra's tracebacks
     argv = sys.argv
     sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override(), *sweep_owner_override()]
     try:
@@ -69,9 +70,6 @@ def launch(plan: SweepPlan) -> int:
     finally:
         sys.argv = argv
     return summarise(plan)
-
-
-full_errors = bool(os.environ.get("HYDRA_FULL_ERROR"))  # the user asked for Hydra's tracebacks
 
 
 @contextmanager
