@@ -42,7 +42,7 @@ def test_one_file_with_unequal_seed_counts_does_not_load(rows) -> None:
 def test_each_file_loads_whole_and_holds_the_seed_means(rows) -> None:
     groups = seed_groups(rows, MODELS)
     assert {name: (models, len(seeds)) for name, (models, seeds) in groups.items()} == {
-        "marl_eval.json": (MODELS, 4), "marl_eval_M0_M4.json": (["M0", "M4"], 14),
+        "marl_eval.json": (MODELS, 5), "marl_eval_M0_M4.json": (["M0", "M4"], 14),
         "marl_eval_M2_M5.json": (["M2", "M5"], 6)}
     for name, data in export_files(rows, MODELS).items():
         models, seeds = groups[name]

@@ -23,6 +23,7 @@ On the command line, besides any override of the training config:
 from sigmarl.sweep.launch import finished, launch, run_sweep, summarise
 from sigmarl.sweep.plan import Job, SweepPlan, job_overrides, plan_sweep
 
-# `sigmarl.sweep.job.run_job`, what each job runs, imports torch: it is not imported here, so
+# `sigmarl.sweep.job.run_job`, what each job runs, imports torch: it is not imported here (the
+# launcher gets `sigmarl.sweep.task.run_job`, which imports it in the job), so
 # that planning, and a sweep whose jobs are all finished, answer without it.
 __all__ = ["Job", "SweepPlan", "finished", "job_overrides", "launch", "plan_sweep", "run_sweep", "summarise"]

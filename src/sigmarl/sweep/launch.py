@@ -24,6 +24,7 @@ from sigmarl.resources import sweep_folder_override, sweep_owner_override
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep.command import override_key
 from sigmarl.sweep.plan import Job, SweepPlan, plan_sweep
+from sigmarl.sweep.task import run_job
 from sigmarl.tracking import open_tracker
 
 PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
@@ -46,8 +47,6 @@ def launch(plan: SweepPlan) -> int:
     tracker = open_tracker(plan.config) if plan.config is not None else None
     overrides = multirun_overrides(plan, write_plan(plan))
     register_configs()
-    # lazy: the jobs' torch only once jobs run; a finished sweep is answered from its run folders
-    from sigmarl.sweep.job import run_job
 
     full_errors = bool(os.environ.get("HYDRA_FULL_ERROR"))  # the user asked for Hydra's tracebacks
     argv = sys.argv
