@@ -26,7 +26,7 @@ from pathlib import Path
 
 SIGMARL = [sys.executable, "-m", "sigmarl"]
 SMOKE = ["ppo=smoke", "tracking.enabled=false", "threads=1"]
-KILLED_ITERATIONS = 40  # long enough that the kill lands mid-training
+KILLED_ITERATIONS = 20  # long enough that the kill lands mid-training (it lands at about the 4th)
 
 
 @dataclass

@@ -185,6 +185,26 @@ def test_vectorised_p_is_the_verdicts_own_and_scipys():
         assert p[i] == pytest.approx(ref, abs=1e-12)
 
 
+@pytest.mark.parametrize("na,nb", [(5, 5), (6, 6), (4, 7)])
+def test_both_p_values_are_scipys_exact_permutation_tests(na, nb):
+    # equal sizes enumerate half the splits and mirror the rest (`permutation_p`); either way the
+    # two-sided p and TOST's p are scipy's exact tests: of |difference| (greater), and of a
+    # shifted by -margin (alternative less) and +margin (greater), the larger of the two
+    rng = np.random.default_rng(na * 10 + nb)
+    margin = 0.4
+    for _ in range(3):
+        a, b = rng.lognormal(0, 0.5, na), rng.lognormal(0, 0.5, nb)
+        p_diff, p_eq = permutation_p(a, b, margin)
+
+        def exact(x, y, alternative, statistic=lambda u, v, axis: u.mean(axis) - v.mean(axis)):
+            return stats.permutation_test((x, y), statistic, vectorized=True, permutation_type="independent",
+                                          alternative=alternative, n_resamples=np.inf).pvalue
+
+        assert p_diff == pytest.approx(exact(a, b, "greater", lambda u, v, axis: abs(u.mean(axis) - v.mean(axis))),
+                                       abs=1e-12)
+        assert p_eq == pytest.approx(max(exact(a - margin, b, "less"), exact(a + margin, b, "greater")), abs=1e-12)
+
+
 @pytest.mark.parametrize("null", NULLS)
 @pytest.mark.parametrize("n", [3, 5])
 def test_fixed_n_keeps_the_level(null, n):
