@@ -101,3 +101,14 @@ def test_the_measure_sees_a_type_only_circle(tmp_path):
     graph = import_graph(tmp_path)
     assert graph["p.b"] == {"p.a"} and graph["p.c"] == {"p.a"}  # the lazy import of p.c is not an edge
     assert circles(graph) == [["p.a", "p.b"]]
+
+
+def test_the_sweeps_own_process_does_not_import_torch():
+    # the launcher gets sigmarl.sweep.task.run_job, which imports the job (torch, torchrl, the
+    # environment: 4.5 s) only inside the job's process
+    import subprocess
+    import sys
+
+    code = "import sys, sigmarl.sweep.launch, sigmarl.sweep.task; print('torch' in sys.modules)"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "False"
