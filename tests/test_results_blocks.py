@@ -36,7 +36,7 @@ def test_results_blocks_are_the_rebuilt_report(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # tracking is off; nothing may land in the checkout
     script = _script()
     rebuilt = script.report_files()
-    assert set(rebuilt) == {"results-table", "results-findings", "results-statistics", "results-training", "results-verdicts",
+    assert set(rebuilt) == {"results-table", "results-replication", "results-findings", "results-statistics", "results-training", "results-verdicts",
                             "results-curves", "results-seeds",
                             "generalisation-matrix", "generalisation-verdicts", "rules-verdicts"}
     for page in script.pages():

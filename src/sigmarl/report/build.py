@@ -36,6 +36,7 @@ from sigmarl.report.interactions import interaction_table, interactions_markdown
 from sigmarl.report.marl_eval import export_files, interval_data
 from sigmarl.report.next_seed import next_seed_markdown, prediction_table, slow_seed_table
 from sigmarl.report.paper import paper_curves, paper_values
+from sigmarl.report.replication import replication_markdown, replication_table
 from sigmarl.report.scores import (
     aggregate_scores,
     composite_intervals,
@@ -346,6 +347,21 @@ def curve_verdicts_section(d: Draft) -> None:
     d.write("paper_seeds", "paper_seeds.csv", seeds)
 
 
+def replication_section(d: Draft) -> None:
+    """(compare_paper) Does each claim of the paper's Table I reproduce: replication.csv and
+    replication.md (`report.replication`), over the columns that are the paper's own models
+    (label and observation strategies both, so no other design is read as the paper's)."""
+    if not d.options.compare_paper or "M0" not in d.models:
+        return
+    obs = d.rows.drop_duplicates("model").set_index("model")["obs"].astype(str)
+    own = [m for m in d.models if paper_model_of(obs.get(m, "")) == m]
+    if "M0" not in own or len(own) < 2:
+        return
+    table = replication_table(d.rows, own, "M0", d.design.alpha)
+    d.write("replication", "replication.csv", table)
+    d.write("replication_md", "replication.md", replication_markdown(table, d.design.alpha) if len(table) else None)
+
+
 def figures_section(d: Draft) -> None:
     """distributions.png, performance_profiles.png, heatmap.png (several scenarios and models),
     and training_curves.png and training_band.png (curves given)."""
@@ -376,5 +392,5 @@ def figures_section(d: Draft) -> None:
 
 SECTIONS: list[Callable[[Draft], None]] = [
     table_section, statistics_section, training_section, seeds_section, latex_section, verdicts_section,
-    findings_section, marl_eval_section, curve_verdicts_section, figures_section,
+    findings_section, marl_eval_section, curve_verdicts_section, replication_section, figures_section,
 ]
