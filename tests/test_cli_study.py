@@ -43,9 +43,12 @@ def test_the_sweeps_hint_keeps_what_finds_its_runs(tmp_path, monkeypatch):
     from sigmarl.sweep.launch import report_hint
 
     monkeypatch.delenv("SIGMARL_CONFIG_PATH", raising=False)
-    # ppo=smoke moves the runs into experiment sigmarl-smoke: the report needs it too
+    # ppo=smoke moves the runs into experiment sigmarl-smoke, and is the training config every
+    # column composes to: the report needs it too (the evaluation's own settings it does not)
     plan = plan_sweep(["ppo=smoke", "models=[M0]", "eval.n_sims=2", "tracking.enabled=false"])
-    assert report_hint(plan) == "sigmarl report ppo=smoke eval.n_sims=2 tracking.enabled=false"
+    assert report_hint(plan) == "sigmarl report ppo=smoke tracking.enabled=false"
+    plan = plan_sweep(["study=quick", "models=[M0]", "env.n_agents=5"])
+    assert report_hint(plan) == "sigmarl report study=quick env.n_agents=5"
     # where only the study and the store choose them, those alone, quoted for the shell
     plan = plan_sweep(["study=quick", "models=[M0]", "eval.n_sims=2", f"runs_root={tmp_path}/my runs"])
     assert report_hint(plan) == f"sigmarl report study=quick 'runs_root={tmp_path}/my runs'"

@@ -54,8 +54,10 @@ def test_a_clear_interaction_differs_and_a_null_one_is_the_same():
 
 def test_paper_rules_declares_its_question():
     study = compose_config(["study=paper_rules"]).study
-    assert dict(study.interactions) == {"M4": ["M4-paper", "M4"], "M1": ["M1-paper", "M1"]}
-    assert study.baselines["M4"] == "M0" and study.baselines["M4-paper"] == "M0-paper"
+    assert dict(study.interactions) == {"M4": ["M4-paper", "M4"], "M1": ["M1-paper", "M1"],
+                                        "M5": ["M5-paper", "M5"], "M2": ["M2-paper", "M2"]}
+    for model in ("M4", "M1", "M5", "M2"):
+        assert study.baselines[model] == "M0" and study.baselines[f"{model}-paper"] == "M0-paper"
 
 
 @pytest.mark.parametrize("value, says", [

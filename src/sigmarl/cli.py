@@ -159,7 +159,8 @@ def cmd_report(args: argparse.Namespace) -> None:
                             models=args.models.split(",") if args.models else None, ci=args.ci,
                             figures=not args.no_figures, animation_steps=args.animations, partial=args.partial,
                             scenarios=list(cfg.eval.scenarios) if _sets(args.overrides, "eval.scenarios",
-                                                                        "study.scenarios") else None)
+                                                                        "study.scenarios") else None,
+                            overrides=tuple(args.overrides))
     out_dir = Path(args.out) if args.out else None
     if args.source:
         report = make_report_from_folder([Path(s) for s in args.source], cfg, out_dir, options)
@@ -346,8 +347,9 @@ def _add_report(sub) -> argparse.ArgumentParser:
     rp.add_argument("--out", help="output folder (default: reports/<experiment>, or reports/<FOLDER name>)")
     rp.add_argument("--no-figures", action="store_true", help="tables only")
     rp.add_argument("--partial", action="store_true",
-                    help="report what is there when a run failed or a variant of the study has no rows "
-                         "(each named in the notes); without it, such a report is refused")
+                    help="report what is there when a run failed, a variant of the study has no rows, or a "
+                         "run under a variant's label was trained with another config (each named in the "
+                         "notes); without it, such a report is refused")
     rp.add_argument("--animations", type=int, nargs="?", const=200, default=0, metavar="STEPS",
                     help="also one GIF per scenario of the study's baseline driving (default 200 steps)")
     rp.add_argument("--plan", action="store_true",

@@ -15,6 +15,7 @@ from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
 from sigmarl.report.aggregate import label_order
 from sigmarl.report.build import BuildOptions, Report, build_report
+from sigmarl.report.columns import check_columns, one_config_per_run, variant_configs
 from sigmarl.report.coverage import belongs, check, left_out
 from sigmarl.report.folder import checkpoint_of, read_many, read_results, run_folders
 from sigmarl.report.verdicts import design_of
@@ -35,6 +36,7 @@ class ReportOptions:
     animation_steps: int = 0  # > 0: one GIF per scenario of the baseline driving
     partial: bool = False  # report what is there when a run failed or a variant has no rows
     scenarios: list[str] | None = None  # only these (eval.scenarios=/study.scenarios= given), in this order
+    overrides: tuple[str, ...] = ()  # the report's command line: each variant's column composes with them
 
 
 def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions = ReportOptions()) -> Report:
@@ -55,7 +57,10 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
         missing = left_out(list(cfg.study.variants), set(), folders, where, declared=False)
         raise SigmarlError(f"{e}; " + "; ".join(map(str, missing)) if missing else str(e)) from e
     rows = only_scenarios(rows, options.scenarios, experiment)
-    notes = _coverage(rows, cfg, options, folders, where)
+    expected = variant_configs(options.overrides, dict(cfg.study.variants), rows["model"].astype(str))
+    rows, wrong = check_columns(rows, expected, options.partial, lambda rid: records.evaluated_config(client, rid))
+    rows = one_config_per_run(rows, list(expected))
+    notes = [*wrong, *_coverage(rows, cfg, options, folders, where)]
     curves = records.load_training_curves(client, experiment) if options.figures else None
     out_dir = out_dir or Path("reports") / experiment
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sigmarl.stats.permutation import DRAWS, EXACT_LIMIT, SEED, _share, is_exact, splits
+from sigmarl.stats.permutation import DRAWS, EXACT_LIMIT, SEED, is_exact, share, splits
 
 _CHUNK = 4_000_000  # splits x samples computed at once (memory)
 _TINY = 1e-12  # a group without spread: Welch's variance floored, so t stays finite
@@ -62,7 +62,7 @@ def greater_p(a, b, shift: float = 0.0, statistic: str = "difference", draws: in
         # the same value reached by another order of summation counts as extreme
         tol = 1e-9 * np.maximum(1.0, np.abs(pooled).max(axis=-1, keepdims=True) if statistic == "difference"
                                 else np.abs(observed))
-        p[lo:lo + step] = _share(np.count_nonzero(t >= observed - tol, axis=-1), len(s), exact)
+        p[lo:lo + step] = share(np.count_nonzero(t >= observed - tol, axis=-1), len(s), exact)
     return float(p[0]) if not lead else p.reshape(lead)
 
 

@@ -60,7 +60,7 @@ def splits(n: int, k: int, draws: int = DRAWS, seed: int = SEED, exact_limit: in
     return out
 
 
-def _share(count: np.ndarray, total: int, exact: bool) -> np.ndarray:
+def share(count: np.ndarray, total: int, exact: bool) -> np.ndarray:
     """p from the number of splits at least as extreme: their share of every split (exact), or
     (1 + count) / (1 + draws)."""
     return count / total if exact else (1 + count) / (1 + total)
@@ -105,8 +105,8 @@ def permutation_p(a, b, margin: float, draws: int = DRAWS, seed: int = SEED, exa
             n_diff = 2 * n_diff
             n_upper = n_upper + np.count_nonzero(down >= margin - d - tol, axis=-1)
             n_lower = n_lower + np.count_nonzero(up <= -d - margin + tol, axis=-1)
-        p_diff[lo:lo + step] = _share(n_diff, total, exact)
-        p_eq[lo:lo + step] = np.maximum(_share(n_upper, total, exact), _share(n_lower, total, exact))
+        p_diff[lo:lo + step] = share(n_diff, total, exact)
+        p_eq[lo:lo + step] = np.maximum(share(n_upper, total, exact), share(n_lower, total, exact))
     if not lead:
         return float(p_diff[0]), float(p_eq[0])
     return p_diff.reshape(lead), p_eq.reshape(lead)

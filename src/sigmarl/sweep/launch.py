@@ -18,6 +18,7 @@ import hydra
 
 from sigmarl.compose import search_path_override
 from sigmarl.config import register_configs
+from sigmarl.identity import TRAINING_GROUPS
 from sigmarl.paths import CONFIG_PATH, conf_dir, user_conf_dirs
 from sigmarl.readers import rows_measured
 from sigmarl.resources import sweep_folder_override, sweep_owner_override
@@ -173,10 +174,13 @@ def summarise(plan: SweepPlan) -> int:
 def report_hint(plan: SweepPlan) -> str:
     """The `sigmarl report` command that finds this sweep's runs, as typed in the same folder:
     its --config-dir folders and the overrides that choose the study, the store and the run
-    folders (all of the sweep's where others move them too, e.g. ppo=smoke's own experiment)."""
+    folders and the training settings (all of the sweep's where others move them too)."""
     from sigmarl.compose import compose_config
 
-    keep = [o for o in plan.fixed if override_key(o).split(".")[0] in ("study", "tracking", "runs_root")]
+    # and the training settings every job shares: the report composes each column's config with
+    # them, and a column whose runs were trained otherwise is refused (sigmarl.report.columns)
+    keep = [o for o in plan.fixed
+            if override_key(o).split(".")[0].lstrip("+~") in ("study", "tracking", "runs_root", *TRAINING_GROUPS)]
     if len(keep) < len(plan.fixed) and _where(compose_config(keep)) != _where(plan.config):
         keep = list(plan.fixed)
     dirs = [f"--config-dir {shlex.quote(_shown(d))}" for d in user_conf_dirs()]

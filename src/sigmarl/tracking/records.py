@@ -22,7 +22,8 @@ from sigmarl import crash
 from sigmarl.ablation import TIMINGS
 from sigmarl.errors import SigmarlError, end_status
 from sigmarl.metrics import METRIC_COLUMNS, METRICS
-from sigmarl.run import REWARD_COLUMN, ROWS_FILE
+from sigmarl.readers import read_run_config
+from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
 from sigmarl.tracking.store import experiment_id
 
 if TYPE_CHECKING:  # pandas is imported where rows are read: a sweep's quick checks need only eval_key
@@ -126,15 +127,20 @@ def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
         order_by=["attributes.start_time ASC"],
     )
     frames = []
-    # Keep the newest evaluation of each (model, seed) so a re-evaluation replaces the old one.
+    # Keep the newest evaluation of each (model, seed, training config) so a re-evaluation
+    # replaces the old one, and a run of another config under the same label does not hide the
+    # declared one's (the report chooses by fingerprint: sigmarl.report.columns)
     latest = {}
     for run in runs:
-        latest[(run.data.tags.get("model"), run.data.tags.get("seed"), run.data.tags.get("obs"))] = run
+        tags = run.data.tags
+        latest.pop(key := (tags.get("model"), tags.get("seed"), tags.get("obs"), tags.get("fingerprint", "")), None)
+        latest[key] = run  # re-inserted: the dict's order is the evaluations' order
     with tempfile.TemporaryDirectory() as tmp:
         for run in latest.values():
             path = client.download_artifacts(run.info.run_id, ROWS_ARTIFACT, tmp)
             frame = pd.read_csv(path)
             frame["eval_run_id"] = run.info.run_id
+            frame["fingerprint"] = run.data.tags.get("fingerprint", "")
             frames.append(frame)
     if not frames:
         raise SigmarlError(
@@ -142,6 +148,14 @@ def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
             "or `sigmarl evaluate <run>` first"
         )
     return pd.concat(frames, ignore_index=True)
+
+
+def evaluated_config(client, eval_run_id: str):
+    """The training config of the run an evaluation run evaluated (its checkpoint's run
+    folder's config.yaml), None where that folder is not on this machine."""
+    checkpoint = client.get_run(eval_run_id).data.tags.get("checkpoint")
+    path = Run(Path(checkpoint).parent).config_file if checkpoint else None
+    return read_run_config(path) if path is not None and path.is_file() else None
 
 
 def _last_per_step(client, run_id: str, metric: str) -> dict[int, float]:

@@ -1,0 +1,89 @@
+"""A column is a config: the runs a report shows under a study's variant are the runs of the
+training config that variant composes to (with the report's own overrides), never merely runs
+that carry its label. A run evaluated into the study's experiment under the label but trained
+otherwise (a quick-budget M0 in the paper study's store) is refused in one line naming both
+fingerprints and what differs, or, with --partial, left out with a note in the report."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from collections.abc import Callable, Sequence
+
+import pandas as pd
+
+from sigmarl.config import Config
+from sigmarl.errors import SigmarlError
+from sigmarl.identity import differences, training_settings
+
+
+def variant_configs(overrides: Sequence[str], variants: dict[str, list[str]],
+                    labels: Sequence[str]) -> dict[str, Config]:
+    """label -> the training config the study's variant composes to under the report's overrides,
+    for the declared variants among `labels` (a label a sweep derived, e.g. M0_hidden-64-64, has
+    no declaration to compose)."""
+    # lazy: Hydra only where a report reads runs of a declared study
+    from sigmarl.compose import compose_config
+
+    keep = [o for o in overrides if not o.lstrip("+~").startswith(("model=", "seed="))]
+    return {label: compose_config([*keep, *variants[label], f"model={label}"])
+            for label in dict.fromkeys(labels) if label in variants}
+
+
+def _changes(own: Config | None, cfg: Config, fp: str) -> frozenset:
+    """What a run's training config sets otherwise than its variant's composition, as
+    (key, its value) pairs; a run whose config is not on this machine is its fingerprint alone."""
+    if fp == cfg.fingerprint:
+        return frozenset()
+    if own is None:
+        return frozenset({("fingerprint", fp)})
+    x, y = training_settings(own), training_settings(cfg)
+    return frozenset((k, json.dumps(x.get(k), default=str)) for k in set(x) | set(y) if x.get(k) != y.get(k))
+
+
+def check_columns(rows: pd.DataFrame, expected: dict[str, Config], partial: bool,
+                  recorded: Callable[[str], Config | None] = lambda run: None) -> tuple[pd.DataFrame, list[str]]:
+    """The rows without those of runs trained otherwise than their column's siblings, and the
+    report's notes; refused in one line where any is, unless `partial`.
+
+    Each run's changes against its variant's composition are compared: runs whose changes are
+    the ones every other column shares (a sweep's command line, e.g. ppo=smoke, that the report
+    was not given) are kept; a run whose changes
+    are its own (a quick-budget M0 beside the paper's M4, or two budgets in one column) is not
+    its variant. `recorded(run)` gives a run's training config from the row's `eval_run_id`."""
+    if "fingerprint" not in rows or not expected:
+        return rows, []
+    fp = rows["fingerprint"].fillna("").astype(str)
+    ours = rows["model"].astype(str).isin(list(expected)) & (fp != "")  # untagged (older) runs: kept
+    groups = {}
+    for (label, seed, other), group in rows[ours].groupby(["model", "seed", "fingerprint"], sort=True):
+        own = recorded(str(group["eval_run_id"].iloc[0])) if "eval_run_id" in group else None
+        groups[(label, seed, other)] = (own, _changes(own, expected[label], other))
+    signatures = Counter(changes for _, changes in groups.values())
+    shared = frozenset() if frozenset() in signatures else (signatures.most_common(1)[0][0] if signatures else None)
+    lines, bad = [], pd.Series(False, index=rows.index)
+    for (label, seed, other), (own, changes) in groups.items():
+        if changes == shared:
+            continue
+        cfg = expected[label]
+        what = f": {differences(own, cfg)}" if own is not None else ""
+        lines.append(f"{label} seed {seed} was trained with fingerprint {other}, not the variant's "
+                     f"{cfg.fingerprint}{what}")
+        bad |= (rows["model"].astype(str) == label) & (rows["seed"] == seed) & (fp == other)
+    notes = []
+    if lines and not partial:
+        more = f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""
+        raise SigmarlError(f"{lines[0]}{more}: it is not that variant; report the study it was trained in, "
+                           "give the same overrides it was trained with, or --partial to leave it out")
+    notes += [f"Left out: {line} (not this column's config)." for line in lines]
+    return rows[~bad].reset_index(drop=True), notes
+
+
+def one_config_per_run(rows: pd.DataFrame, declared: Sequence[str] = ()) -> pd.DataFrame:
+    """Where one (model, seed) of a label without a declared variant to choose by was evaluated
+    under several training configs, the newest evaluation's (rows in evaluation order)."""
+    if "fingerprint" not in rows or not len(rows):
+        return rows
+    newest = rows.groupby(["model", "seed"], sort=False)["fingerprint"].transform("last")
+    keep = (rows["fingerprint"] == newest) | rows["model"].astype(str).isin(list(declared))
+    return rows[keep].reset_index(drop=True)
