@@ -49,10 +49,16 @@ def fingerprint(cfg: Config) -> str:
     return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
 
+def changed_keys(a: Config, b: Config) -> list[str]:
+    """The training settings in which two configs differ, sorted."""
+    x, y = training_settings(a), training_settings(b)
+    return [k for k in sorted(set(x) | set(y)) if x.get(k) != y.get(k)]
+
+
 def differences(a: Config, b: Config, limit: int = 4) -> str:
     """The training settings in which two configs differ, as 'key: a -> b, ...'."""
     x, y = training_settings(a), training_settings(b)
-    keys = [k for k in sorted(set(x) | set(y)) if x.get(k) != y.get(k)]
+    keys = changed_keys(a, b)
     text = ", ".join(f"{k}: {x.get(k, '(none)')} -> {y.get(k, '(none)')}" for k in keys[:limit])
     return text + (f" and {len(keys) - limit} more" if len(keys) > limit else "")
 

@@ -14,7 +14,7 @@ import pandas as pd
 
 from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
-from sigmarl.identity import differences, training_settings
+from sigmarl.identity import changed_keys, differences, training_settings
 
 
 def variant_configs(overrides: Sequence[str], variants: dict[str, list[str]],
@@ -37,8 +37,8 @@ def _changes(own: Config | None, cfg: Config, fp: str) -> frozenset:
         return frozenset()
     if own is None:
         return frozenset({("fingerprint", fp)})
-    x, y = training_settings(own), training_settings(cfg)
-    return frozenset((k, json.dumps(x.get(k), default=str)) for k in set(x) | set(y) if x.get(k) != y.get(k))
+    mine = training_settings(own)
+    return frozenset((k, json.dumps(mine.get(k), default=str)) for k in changed_keys(own, cfg))
 
 
 def check_columns(rows: pd.DataFrame, expected: dict[str, Config], partial: bool,
