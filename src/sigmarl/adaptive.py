@@ -49,7 +49,10 @@ def run_auto(user: Sequence[str]) -> int:
                            f"the variants swept ({', '.join(labels)})")
     design = design_of(study, labels)
     family = len(design.compared) * len(study.scenarios) * len(design.metrics)
-    first = first_decidable_look(n_start, design.max_seeds, design.alpha, max(family, 1))
+    if family == 0:  # nothing to decide: seeds would be trained for no verdict
+        raise SigmarlError(f"seeds=auto has nothing to compare: {_empty_family(design, study)}; sweep "
+                           "at least one variant beside the baseline with a decided metric and a scenario")
+    first = first_decidable_look(n_start, design.max_seeds, design.alpha, family)
     path = Path(plan.config.runs_root) / RECORD
     identity = {"study": study.name, "variants": labels, "baseline": design.baseline,
                 "metrics": list(design.metrics), "margins": design.margins, "alpha": design.alpha,
@@ -89,6 +92,13 @@ def run_auto(user: Sequence[str]) -> int:
         if look.done:
             print(f"seeds=auto: done; {_summary(record)}; the record is {path}")
             return 0
+
+
+def _empty_family(design, study) -> str:
+    """Why a study's family of comparisons is empty, in words."""
+    parts = [f"{len(design.compared)} variant(s) beside the baseline {design.baseline}",
+             f"{len(design.metrics)} metric(s)", f"{len(study.scenarios)} scenario(s)"]
+    return ", ".join(parts)
 
 
 def _first_seeds(jobs, first: int) -> dict[str, list[int]]:

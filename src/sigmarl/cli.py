@@ -78,8 +78,9 @@ def cmd_train(args: argparse.Namespace) -> None:
 def cmd_evaluate(args: argparse.Namespace) -> None:
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config
-    from sigmarl.evaluation.target import resolve_checkpoint
+    from sigmarl.evaluation.target import check_evaluate_overrides, resolve_checkpoint
 
+    check_evaluate_overrides(args.overrides)
     for name in args.scenario or ():  # a wrong name is answered before Hydra, in well under a second
         scenario(name)
     cfg = compose_config(args.overrides)

@@ -14,6 +14,23 @@ from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
 from sigmarl.run import Run, checkpoint_name
 
+# What `sigmarl evaluate` takes from the command line: the protocol, the store, where it runs, and
+# the study (its scenarios and evaluation budget). The policy's own settings (observation,
+# network, map, rules, seed) come from the checkpoint's training config.
+HONOURED = ("eval", "tracking", "study", "threads", "device")
+
+
+def check_evaluate_overrides(overrides: list[str]) -> None:
+    """Refuse, in one line, overrides that `sigmarl evaluate` would silently drop."""
+    def key(o: str) -> str:
+        return o.lstrip("+~").split("=", 1)[0].strip()
+
+    dropped = [o for o in overrides if key(o).split(".", 1)[0] not in HONOURED]
+    if dropped:
+        raise SigmarlError(f"evaluate cannot honour {', '.join(dropped)}: a trained policy keeps its training "
+                           f"config (train a model with them instead); evaluate takes only "
+                           f"{', '.join(k + ('' if k in ('threads', 'device') else '.*') for k in HONOURED)}")
+
 
 def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = None) -> Path:
     """A checkpoint file from a path, a training run folder, or an MLflow training run id."""

@@ -44,6 +44,7 @@ from sigmarl.report.scores import (
     improvement_overall,
 )
 from sigmarl.report.seeds import seed_table, seeds_markdown
+from sigmarl.report.study_header import reward_differs, study_markdown
 from sigmarl.report.tables import (
     ResultTable,
     build_table,
@@ -153,6 +154,11 @@ class BuildOptions:
     order: list[str] | None = None
     baseline: str | None = None
     design: Design | None = None
+    # per column one training config (study.md: what each column changes); defaults: the
+    # configuration without overrides; commit: the checkout the report is built at
+    configs: dict | None = None
+    defaults: object | None = None
+    commit: str | None = None
 
 
 @dataclass
@@ -270,7 +276,20 @@ def training_section(d: Draft) -> None:
     d.training = training_summary(d.curves, d.models)
     last = paper_last_rewards(paper_curves()) if d.options.compare_paper else None
     d.write("training", "training.csv", d.training)
-    d.write("training_md", "training.md", training_markdown(d.training, last))
+    text = training_markdown(d.training, last)
+    configs = [d.options.configs[m] for m in d.models if m in (d.options.configs or {})]
+    if differ := reward_differs(configs):  # sums of different reward functions
+        text = (f"Not comparable across columns: they train on different rewards ({', '.join(differ)}); "
+                "each column's rewards compare only with its own seeds.\n\n") + text
+    d.write("training_md", "training.md", text)
+
+
+def study_section(d: Draft) -> None:
+    """What the report compares (study.md; `report.study_header`), the columns' configs given."""
+    o = d.options
+    if o.configs is None or o.defaults is None:
+        return
+    d.write("study", "study.md", study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit))
 
 
 def seeds_section(d: Draft) -> None:
@@ -391,6 +410,6 @@ def figures_section(d: Draft) -> None:
 
 
 SECTIONS: list[Callable[[Draft], None]] = [
-    table_section, statistics_section, training_section, seeds_section, latex_section, verdicts_section,
+    study_section, table_section, statistics_section, training_section, seeds_section, latex_section, verdicts_section,
     findings_section, marl_eval_section, curve_verdicts_section, replication_section, figures_section,
 ]

@@ -21,6 +21,7 @@ from sigmarl.report.folder import checkpoint_of, read_many, read_results, run_fo
 from sigmarl.report.verdicts import design_of
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, open_tracker, records
+from sigmarl.tracking.meta import git_commit
 
 
 @dataclass(frozen=True)
@@ -63,8 +64,9 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     notes = [*wrong, *_coverage(rows, cfg, options, folders, where)]
     curves = records.load_training_curves(client, experiment) if options.figures else None
     out_dir = out_dir or Path("reports") / experiment
+    configs = _column_configs(rows, lambda rid: records.evaluated_config(client, rid), expected)
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
-                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options, notes)
+                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options, notes, configs)
     tracker.log_report(report.composite, report.paths.values(), {
         "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
     })
@@ -90,8 +92,9 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     # the folders' runs without rows are in the notes already (read_results): only variants never run added
     notes = _coverage(results.rows, cfg, options, folders, ", ".join(map(str, roots)), runs_noted=True)
     tracker = open_tracker(cfg)  # checked before any work
+    configs = _folder_configs(results.runs)
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
-                    options, extra_notes=[*results.notes, *notes])
+                    options, extra_notes=[*results.notes, *notes], configs=configs)
     tracker.log_report(report.composite, report.paths.values(),
                        {"source": ",".join(str(r.resolve()) for r in roots)},
                        source=",".join(str(r) for r in roots))
@@ -109,8 +112,31 @@ def only_scenarios(rows, scenarios: list[str] | None, where: str):
     return rows[rows["scenario"].astype(str).isin(scenarios)].reset_index(drop=True)
 
 
+def _column_configs(rows, recorded: Callable[[str], Config | None], expected: dict[str, Config]) -> dict[str, Config]:
+    """label -> the training config of its first evaluated run (its run folder's config.yaml),
+    else the variant's composition (the columns were checked to be it, `check_columns`)."""
+    out = {}
+    for label, group in rows.groupby(rows["model"].astype(str), sort=False):
+        own = recorded(str(group["eval_run_id"].iloc[0])) if "eval_run_id" in group else None
+        if own is not None or label in expected:
+            out[label] = own if own is not None else expected[label]
+    return out
+
+
+def _folder_configs(runs) -> dict[str, Config]:
+    """label -> the config.yaml of its first run folder that has one (checked reader)."""
+    from sigmarl.readers import read_run_config
+
+    out = {}
+    for run in runs:
+        path = run.path / "config.yaml"
+        if run.label not in out and path.is_file():
+            out[run.label] = read_run_config(path)
+    return out
+
+
 def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callable[[], Path],
-           options: ReportOptions, extra_notes=()) -> Report:
+           options: ReportOptions, extra_notes=(), configs: dict[str, Config] | None = None) -> Report:
     """Tables, figures, the scenarios' maps and the baseline's animations, drawn into a staging
     folder and moved into out_dir only when all are complete."""
     models = options.models
@@ -121,7 +147,9 @@ def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callab
                              compare_paper=options.compare_paper, latex=options.latex, ci=options.ci,
                              figures=options.figures, extra_notes=tuple(extra_notes),
                              order=list(cfg.study.variants) or None, baseline=cfg.study.baseline,
-                             design=design_of(cfg.study, models or sorted(set(rows["model"].astype(str)))))
+                             design=design_of(cfg.study, models or sorted(set(rows["model"].astype(str)))),
+                             configs=configs, defaults=_defaults() if configs is not None else None,
+                             commit=git_commit())
         report = build_report(rows, build, curves)
         known = [s for s in report.table.scenarios if s in scenario_names()]  # the maps the rows ran on
         if options.figures:
@@ -130,6 +158,13 @@ def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callab
             report.paths.update(_animations(baseline_checkpoint(), cfg, staging, options.animation_steps, known))
         publish(report, staging, out_dir)
     return report
+
+
+def _defaults() -> Config:
+    """The configuration without overrides: what study.md's shared settings are measured from."""
+    from sigmarl.compose import compose_config
+
+    return compose_config([])
 
 
 def _coverage(rows, cfg: Config, options: ReportOptions, folders, where: str, runs_noted: bool = False) -> list[str]:

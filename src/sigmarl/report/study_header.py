@@ -1,0 +1,90 @@
+"""study.md: what a report compares. Per column its label, fingerprint, seeds and the training
+settings that define it against the baseline; the settings every column shares where they
+differ from the defaults (a command line such as env.n_agents=5 included); the budget; the
+commit the report was built at. A label alone (NA0.2, K4) says none of this."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+
+import pandas as pd
+
+from sigmarl.config import Config
+from sigmarl.identity import changed_keys, fingerprint, training_settings
+
+
+def _value(settings: dict, key: str) -> str:
+    return json.dumps(settings.get(key), default=str) if key in settings else "(unset)"
+
+
+def _changes(cfg: Config, against: Config) -> str:
+    mine = training_settings(cfg)
+    keys = changed_keys(cfg, against)
+    return ", ".join(f"`{k}={_value(mine, k)}`" for k in keys) or "–"
+
+
+def shared_settings(configs: Sequence[Config], defaults: Config) -> list[str]:
+    """'key=value (default d)' for the training settings on which every column agrees and
+    which differ from the defaults."""
+    if not configs:
+        return []
+    first = training_settings(configs[0])
+    base = training_settings(defaults)
+    agreed = [k for k in changed_keys(configs[0], defaults)
+              if all(_value(training_settings(c), k) == _value(first, k) for c in configs[1:])]
+    return [f"`{k}={_value(first, k)}` (default {_value(base, k)})" for k in agreed]
+
+
+def reward_differs(configs: Sequence[Config]) -> list[str]:
+    """The reward settings (env.reward.*) in which the columns differ: their training rewards
+    are then sums of different functions, not comparable."""
+    keys = set()
+    for c in configs[1:]:
+        keys |= {k for k in changed_keys(configs[0], c) if k.startswith("env.reward.")}
+    return sorted(keys)
+
+
+def _span(values) -> str:
+    values = sorted(set(int(v) for v in values))
+    return f"{values[0]:,}" if len(values) == 1 else f"{values[0]:,}–{values[-1]:,}"
+
+
+def study_markdown(configs: Mapping[str, Config], rows: pd.DataFrame, models: Sequence[str], baseline: str | None,
+                   defaults: Config, commit: str | None) -> str:
+    """The report's study.md (see the module's docstring); `configs`: one training config per
+    column (a run's own where it is on this machine)."""
+    shown = [m for m in models if m in configs]
+    against = configs.get(baseline) if baseline else None
+    lines = ["# What this report compares", ""]
+    lines += [f"| column | fingerprint | seeds | trained otherwise than {baseline or 'the first column'} |",
+              "|---|---|---|---|"]
+    for m in shown:
+        seeds = sorted(set(rows.loc[rows["model"].astype(str) == m, "seed"].astype(int)))
+        change = "(baseline)" if m == baseline else (_changes(configs[m], against) if against is not None else "–")
+        lines.append(f"| {m} | `{fingerprint(configs[m])}` | {len(seeds)} ({', '.join(map(str, seeds))}) | {change} |")
+    missing = [m for m in models if m not in configs]
+    if missing:
+        lines += ["", f"No training config on this machine for {', '.join(missing)}: their settings are not shown."]
+    cfgs = [configs[m] for m in shown]
+    shared = shared_settings(cfgs, defaults)
+    lines += ["", "## Settings every column shares, where they are not the defaults", ""]
+    lines += [f"- {s}" for s in shared] or ["- none: every shared setting is the default"]
+    lines += ["", "## Budget", ""]
+    if cfgs:
+        its = [c.ppo.iterations for c in cfgs]
+        frames = [c.ppo.iterations * c.ppo.frames_per_iteration for c in cfgs]
+        lines.append(f"- training: {_span(its)} iterations, {_span(frames)} frames a seed")
+    per_run = rows.groupby(["model", "seed", "scenario"], sort=False)["simulation"].nunique()
+    scenarios = list(dict.fromkeys(rows["scenario"].astype(str)))
+    steps = sorted({c.eval.steps for c in cfgs})
+    steps_text = f" × {'/'.join(map(str, steps))} steps" if steps else ""
+    seeds = rows.groupby("model")["seed"].nunique()
+    lines.append(f"- seeds: {_span(seeds[[m for m in models if m in seeds.index]])} a column")
+    lines.append(f"- evaluation: {len(scenarios)} scenarios ({', '.join(scenarios)}) × "
+                 f"{_span(per_run)} simulations{steps_text}")
+    if differ := reward_differs(cfgs):
+        lines += ["", f"The columns train on different rewards ({', '.join(differ)}): their training "
+                  "rewards (training.md) are not comparable with each other."]
+    lines += ["", f"Report built at commit {commit or 'unknown (not a git checkout)'}."]
+    return "\n".join(lines) + "\n"
