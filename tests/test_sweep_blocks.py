@@ -11,7 +11,10 @@ import sys
 import pandas as pd
 import pytest
 
+from sigmarl.block_membership import write_membership
+from sigmarl.cli import main
 from sigmarl.errors import SigmarlError
+from sigmarl.run import Run
 from sigmarl.sweep import plan_sweep
 
 OFF = "tracking.enabled=false"
@@ -61,12 +64,28 @@ def test_the_block_size_is_not_a_training_setting(tmp_path):
     assert [j.fingerprint for j in lone.jobs] == [j.fingerprint for j in block.jobs]
 
 
-def test_a_folder_a_lone_run_trains_in_is_refused_before_any_job(tmp_path):
-    """A re-run with a different packing must not take over a half-trained lone run."""
+def test_a_part_trained_lone_run_goes_on_alone_not_in_a_block(tmp_path):
+    """A re-run with a different packing must not take over a half-trained lone run: it
+    resumes alone, and the seeds still to train make the blocks."""
     seed1 = tmp_path / "M0" / "seed1"
     seed1.mkdir(parents=True)
     (seed1 / "checkpoint.pt").write_bytes(b"a lone run's resume point")
-    with pytest.raises(SigmarlError, match=r"seed1 holds a lone training run; a block cannot take it over"):
+    plan = plan_sweep(["models=[M0]", "seeds=[0,1,2]", "sweep.seeds_per_job=2", OFF, f"runs_root={tmp_path}"])
+    assert [u.key for u in plan.units] == ["M0/seeds0_2", "M0/seed1"]
+
+
+def test_a_started_block_goes_on_whole_under_another_packing(tmp_path):
+    """Seeds 2 and 1 began as one block (block.json, a resume point each): a sweep of four
+    seeds keeps them together, in their block's order, and packs the fresh ones apart."""
+    runs = [Run(tmp_path / "M0" / f"seed{s}") for s in (2, 1)]
+    for run in runs:
+        run.dir.mkdir(parents=True)
+        run.resume_file.write_bytes(b"the block's resume point")
+    write_membership(runs, "M0", [2, 1])
+    plan = plan_sweep(["models=[M0]", "seeds=range(4)", "sweep.seeds_per_job=2", OFF, f"runs_root={tmp_path}"])
+    assert [u.key for u in plan.units] == ["M0/seeds0_3", "M0/seeds2_1"]
+    # a block some of whose seeds are left out is still refused, before any job
+    with pytest.raises(SigmarlError, match=r"seed1 belongs to the seed block \[2, 1\]"):
         plan_sweep(["models=[M0]", "seeds=[0,1]", "sweep.seeds_per_job=2", OFF, f"runs_root={tmp_path}"])
 
 
@@ -119,3 +138,25 @@ def test_a_sweep_of_blocks_trains_evaluates_and_reports_as_lone_jobs(tmp_path):
     experiment = client.get_experiment_by_name("sigmarl-quick")
     training = client.search_runs([experiment.experiment_id], "tags.kind = 'training'")
     assert sorted(r.data.tags.get("block", "") for r in training) == ["", "M0 seeds 0,1", "M0 seeds 0,1"]
+
+
+@pytest.mark.slow
+def test_g3_blocks_extend_a_study_leaving_its_finished_seeds_alone(tmp_path, monkeypatch):
+    """A study trained as `seeds=[0]`, extended by `seeds=[0,1,2] sweep.seeds_per_job=2`: the
+    finished seed 0 gets no job (a block with it would stand at two iterations and fail), seeds
+    1 and 2 train as a block, and seed 0's folder is left as it was, not marked failed."""
+    monkeypatch.chdir(tmp_path)
+    tiny = ["study=quick", "models=[M0]", "ppo=smoke", "ppo.iterations=1", "eval.n_sims=1", "eval.steps=5",
+            "eval.scenarios=[Roundabout]", "threads=1", "hydra.launcher.n_jobs=1", OFF, f"runs_root={tmp_path}/runs"]
+    assert main(["sweep", *tiny, "seeds=[0]"]) == 0
+    seed0 = Run(tmp_path / "runs" / "M0" / "seed0")
+    before = {p.name: p.stat().st_mtime_ns for p in seed0.dir.iterdir()}
+    more = [*tiny, "seeds=[0,1,2]", "sweep.seeds_per_job=2"]
+    assert [u.key for u in plan_sweep(more).units] == ["M0/seeds1_2"]
+    assert main(["sweep", *more]) == 0
+    assert not seed0.failed_file.exists()
+    assert {p.name: p.stat().st_mtime_ns for p in seed0.dir.iterdir()} == before
+    for seed in (1, 2):
+        run = Run(tmp_path / "runs" / "M0" / f"seed{seed}")
+        assert run.state == "evaluated"
+        assert json.loads(run.block_file.read_text())["seeds"] == [1, 2]

@@ -10,7 +10,7 @@ import re
 import shlex
 import sys
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
@@ -20,11 +20,10 @@ from sigmarl.compose import search_path_override
 from sigmarl.config import register_configs
 from sigmarl.identity import TRAINING_GROUPS
 from sigmarl.paths import CONFIG_PATH, conf_dir, user_conf_dirs
-from sigmarl.readers import rows_measured
 from sigmarl.resources import sweep_folder_override, sweep_owner_override
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep.command import override_key
-from sigmarl.sweep.plan import Job, SweepPlan, plan_sweep
+from sigmarl.sweep.plan import SweepPlan, finished, plan_sweep
 from sigmarl.sweep.task import run_job
 from sigmarl.tracking import open_tracker
 
@@ -63,8 +62,7 @@ def launch(plan: SweepPlan) -> int:
             raise
         # the launcher itself failed (a worker lost to SIGKILL, a cluster refusing jobs): one
         # line, then the summary from the run folders; a re-run resumes what was cut short
-        started = [j.key for j in plan.jobs if Run(j.run_dir).config_file.is_file() and not finished(j)]
-        print(f"sigmarl sweep: {launcher_failure(e, started)}", file=sys.stderr)
+        print(f"sigmarl sweep: {launcher_failure(e, cut_short(plan))}", file=sys.stderr)
         summarise(plan)
         return 1
     finally:
@@ -87,13 +85,13 @@ def _launcher_errors_raised() -> Iterator[None]:
             os.environ["HYDRA_FULL_ERROR"] = before
 
 
-def launcher_failure(e: Exception, started: Sequence[str] = ()) -> str:
-    """What a launcher's exception means, in one line; `started`: the jobs it cut short."""
+def launcher_failure(e: Exception, started: Mapping[str, str] | None = None) -> str:
+    """What a launcher's exception means, in one line; `started`: the jobs it cut short, each
+    with what it was doing (`cut_short`)."""
     first = (str(e).strip().splitlines() or [""])[0]
     if type(e).__name__ == "TerminatedWorkerError":  # loky: a worker died; it ends the others
         codes = re.search(r"exit codes of the workers are (\{[^}]*\})", str(e))
-        during = f" while training one of {', '.join(started)}" if started else ""
-        return ("a worker process died" + (f" (exit {codes.group(1)})" if codes else "") + during
+        return ("a worker process died" + (f" (exit {codes.group(1)})" if codes else "") + _during(started or {})
                 + ", killed from outside (SIGKILL: the OOM killer?); joblib then ended the sweep's other "
                 "workers. Their runs are ended KILLED and resume when the sweep runs again (fewer "
                 "jobs at once, hydra.launcher.n_jobs=..., if memory ran out)")
@@ -101,21 +99,60 @@ def launcher_failure(e: Exception, started: Sequence[str] = ()) -> str:
             "finished jobs are kept and the sweep resumes the rest when run again")
 
 
+def _during(started: Mapping[str, str]) -> str:
+    """' while training one of A, B or evaluating C': which worker died is not known, only
+    what each job it may have been was doing."""
+    parts = []
+    for doing in ("training", "evaluating"):
+        keys = [key for key, what in started.items() if what == doing]
+        if keys:
+            parts.append(f"{doing} {'one of ' if len(keys) > 1 else ''}{', '.join(keys)}")
+    return f" while {' or '.join(parts)}" if parts else ""
+
+
+def cut_short(plan: SweepPlan) -> dict[str, str]:
+    """The jobs begun but not finished, each with what it was doing: `evaluating` once its
+    training is done (`final.pt`, or a study that evaluates trained runs), else `training`."""
+    evaluates = plan.config is not None and bool(plan.config.study.checkpoints_from)
+    return {job.key: "evaluating" if evaluates or Run(job.run_dir).final_file.exists() else "training"
+            for job in plan.jobs if Run(job.run_dir).config_file.is_file() and not finished(job)}
+
+
 def end_orphaned_runs(plan: SweepPlan, tracker) -> None:
     """A launcher that ends its workers (loky on Ctrl-C or SIGTERM, a worker's SIGKILL) leaves
-    their training runs RUNNING: end KILLED (interrupted, resumable) the ones whose run folder
-    no process holds any more, as the worker itself would have."""
+    their MLflow runs RUNNING, the training run or the evaluation run being logged: end KILLED
+    (interrupted, resumable) the ones whose run folder no process holds any more, as the
+    worker itself would have."""
+    source = plan.config.study.checkpoints_from if plan.config is not None else ""
     for job in plan.jobs:
         run = Run(job.run_dir)
-        if not run.run_id_file.is_file() or run.done_file.exists():
+        # a study of trained runs trains nothing: its evaluations name the trained run's record
+        trained = Run(Path(source) / job.label / f"seed{job.seed}") if source else run
+        if not trained.run_id_file.is_file() or run.done_file.exists():
             continue
         try:
-            with run.lock():  # a worker that still lives holds it, and ends its own run
-                record = tracker.training_run(run.run_id_file.read_text().strip(), reopen=False)
-                if record.status() == "RUNNING":
-                    record.finish("KILLED")
+            with run.lock():  # a worker that still lives holds it, and ends its own runs
+                run_id = trained.run_id_file.read_text().strip()
+                if not source:
+                    record = tracker.training_run(run_id, reopen=False)
+                    if record.status() == "RUNNING":
+                        record.finish("KILLED")
+                _end_evaluations(tracker, run_id, job.eval_key)
         except Exception:  # noqa: BLE001 (best effort on the way out; the re-run repairs it)
             continue
+
+
+def _end_evaluations(tracker, train_run_id: str, key: str) -> None:
+    """End KILLED the job's evaluation runs left RUNNING (a re-run deletes them before it logs
+    its own: sigmarl.tracking.records). MLflow's alone: another tracker keeps its own."""
+    client = getattr(tracker, "client", None)
+    if client is None:
+        return
+    running = client.search_runs([tracker.experiment_id()], filter_string=(
+        f"tags.kind = 'evaluation' and tags.train_run_id = '{train_run_id}' "
+        f"and tags.eval_key = '{key}' and attributes.status = 'RUNNING'"))
+    for old in running:
+        client.set_terminated(old.info.run_id, "KILLED")
 
 
 def write_plan(plan: SweepPlan) -> Path:
@@ -136,16 +173,6 @@ def multirun_overrides(plan: SweepPlan, plan_file: Path) -> list[str]:
         if user_conf_dirs() else []
     return [*search_path_override(), *plan.fixed, *plan.hydra, "study.job=" + ",".join(u.key for u in plan.units),
             f"study.plan='{plan_file}'", "hydra.job.name=sweep", "hydra.sweep.subdir=${study.job}", *users]
-
-
-def finished(job: Job) -> bool:
-    """Whether the job's run folder holds this very job, done: `evaluated.txt`, no `failed.txt`,
-    a config.yaml of the same fingerprint (checked when the plan was made) and whole rows
-    measured under the job's evaluation protocol."""
-    run = Run(job.run_dir)
-    if not run.done_file.is_file() or run.failed_file.exists() or not run.config_file.is_file():
-        return False
-    return rows_measured(run.rows_file, run.rows_meta_file, job.eval_key)
 
 
 def summarise(plan: SweepPlan) -> int:

@@ -17,7 +17,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from sigmarl.block_membership import check_membership
+from sigmarl.block_membership import check_membership, read_block
 from sigmarl.compose import compose_config, compose_seeds
 from sigmarl.config import Config, StudyConfig
 from sigmarl.errors import SigmarlError
@@ -170,13 +170,47 @@ def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: l
 
 def _units(jobs: list[Job], size: int) -> list[Unit]:
     """One variant's jobs in blocks of `size` seeds, in seed order as given; a lone seed is its
-    own job's unit. A re-run of the same sweep makes the same blocks, so each resumes whole."""
-    units = []
-    for i in range(0, len(jobs), size):
-        part = jobs[i:i + size]
-        key = part[0].key if len(part) == 1 else f"{part[0].label}/seeds" + "_".join(str(j.seed) for j in part)
-        units.append(Unit(key, part))
-    return units
+    own job's unit. A re-run of the same sweep makes the same blocks, so each resumes whole.
+
+    Blocks are formed from the seeds still to train, as a block's seeds must stand at one
+    iteration: a finished seed gets no unit (nor a `failed.txt` from a block it cannot join),
+    a seed that trained in a block goes on with that block's seeds (its `block.json`), and a
+    lone run, part or fully trained, goes on alone."""
+    if size <= 1:
+        return [_unit([j]) for j in jobs]
+    fresh: list[Job] = []
+    started: dict[tuple, list[Job]] = {}  # each started seed's group, in the order first met
+    for job in jobs:
+        run = Run(job.run_dir)
+        if finished(job):
+            continue
+        if (recorded := read_block(run)) is not None:
+            started.setdefault(tuple(recorded), []).append(job)
+        elif run.resume_file.exists() or run.final_file.exists():
+            started[(job.seed,)] = [job]
+        else:
+            fresh.append(job)
+    # a block's seeds in its recorded order, the order check_membership compares
+    groups = [sorted(g, key=lambda j, k=k: k.index(j.seed) if j.seed in k else len(k)) for k, g in started.items()]
+    groups += [fresh[i:i + size] for i in range(0, len(fresh), size)]
+    return [_unit(g) for g in sorted(groups, key=lambda g: min(jobs.index(j) for j in g))]
+
+
+def _unit(part: list[Job]) -> Unit:
+    key = part[0].key if len(part) == 1 else f"{part[0].label}/seeds" + "_".join(str(j.seed) for j in part)
+    return Unit(key, part)
+
+
+def finished(job: Job) -> bool:
+    """Whether the job's run folder holds this very job, done: `evaluated.txt`, no `failed.txt`,
+    a config.yaml of the same fingerprint (checked when the plan was made) and whole rows
+    measured under the job's evaluation protocol."""
+    from sigmarl.readers import rows_measured
+
+    run = Run(job.run_dir)
+    if not run.done_file.is_file() or run.failed_file.exists() or not run.config_file.is_file():
+        return False
+    return rows_measured(run.rows_file, run.rows_meta_file, job.eval_key)
 
 
 def _check_apart(jobs: list[Job]) -> None:
