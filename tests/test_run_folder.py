@@ -164,6 +164,7 @@ def test_a_resume_that_would_compute_in_another_precision_is_refused(tmp_path):
     import torch
 
     from sigmarl.compose import compose_config
+    from sigmarl.training.checkpoint import save_atomic
     from sigmarl.training.loop import resolved_settings, train
     from sigmarl.training.ppo_loss import resolve_precision
 
@@ -176,12 +177,12 @@ def test_a_resume_that_would_compute_in_another_precision_is_refused(tmp_path):
     here = resolve_precision(cfg)
     assert state["resolved"] == resolved_settings(cfg) == {"precision": here, "device": "cpu", "threads": 1}
     state["resolved"]["precision"] = {"fp32": "bf16", "bf16": "fp32"}[here]  # as another machine ran it
-    torch.save(state, path)
+    save_atomic(state, path)  # saved with its checksum, as that machine would have
     with pytest.raises(SigmarlError, match=f"it trained in {state['resolved']['precision']} and this machine "
                                            f"resolves ppo.precision to {here}"):
         train(compose_config([*overrides, "resume=true"]))
     state["resolved"] = {"precision": here, "device": "cpu", "threads": 3}  # other threads: fine
-    torch.save(state, path)
+    save_atomic(state, path)
     assert train(compose_config([*overrides, "resume=true"])).finished
 
 

@@ -1,5 +1,5 @@
-"""study.md says what a report compares: per column its fingerprint and what it changes against
-the baseline, the settings all columns share off the defaults, the budget; and a training-reward
+"""The report's study page ("study.md") says what it compares: per column its fingerprint and
+what it changes against the baseline, the settings all columns share off the defaults, the budget; and a training-reward
 comparison across different reward functions is marked not comparable."""
 
 from __future__ import annotations

@@ -9,16 +9,21 @@ a traceback.
 - `read_json`: a JSON record of an expected shape (`seeds_auto.json`, the sweep's plan file,
   `evaluation.json`).
 - `rows_measured`: whether a run's evaluation rows are whole and measured under a protocol.
+- `read_metrics`: a run's `metrics.csv`, line by line (whole-number iterations in
+  1..MAX_ITERATION, finite values); `read_training_curve`: the same file as a report reads it.
+  A resume reads it through `sigmarl.training.metrics_file.read` (every iteration once, in order).
 
-The run folder's other files have their readers beside their writers: `metrics.csv` in
-`sigmarl.training.metrics_file.read`, checkpoints (weights and optimiser state) in
-`sigmarl.training.checkpoint.load`, evaluation rows in `sigmarl.report.folder.check_rows`.
+The run folder's other files have their readers beside their writers: checkpoints (weights,
+optimiser state, checksum) in `sigmarl.training.checkpoint.load`, evaluation rows in
+`sigmarl.report.folder.check_rows`.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
+from itertools import islice
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -31,6 +36,10 @@ if TYPE_CHECKING:
 
 # A config folder is small; a file beyond this is not a config someone wrote.
 MAX_YAML_BYTES = 4 * 2**20
+# Far beyond any real training (the paper's has 250 iterations), but a bound: a garbled
+# iteration (1e308, 99999999999) is refused instead of reported.
+MAX_ITERATION = 10**7
+METRICS_FIX = "restore it from a copy, or move the run folder away and train again"
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -138,3 +147,81 @@ def rows_measured(rows_file: Path, meta_file: Path, key: str) -> bool:
     except (SigmarlError, ValueError):  # pandas' parser errors are ValueErrors
         return False
     return True
+
+
+def read_metrics(path: Path, upto: int | None = None, whole: bool = False,
+                 fix: str = METRICS_FIX) -> list[tuple[int, dict[str, float]]]:
+    """The rows of a run's `metrics.csv` in file order, [(iteration, {name: value})], rows after
+    `upto` left out; each checked: as many fields as the header, the iteration a whole number in
+    1..MAX_ITERATION, every value a finite number. Unless `whole`, a bad last line is taken for
+    the one a kill cut short while it was appended, and dropped. Anything else is one
+    SigmarlError naming the file and line."""
+    if upto == 0:  # a resume before the first iteration needs no row (a cut header included)
+        return []
+    if not path.exists():
+        if upto:
+            raise SigmarlError(f"{path} is missing, and its run has done {upto} iteration(s); {fix}")
+        return []
+    try:
+        lines = path.read_bytes().decode("utf-8").split("\n")
+    except UnicodeDecodeError as e:
+        raise SigmarlError(f"{path} is not a metrics file (byte {e.start} is not text); {fix}") from None
+    except OSError as e:
+        raise SigmarlError(f"{path}: cannot read it ({e.strerror}); {fix}") from None
+    if lines and lines[-1] == "":
+        lines.pop()  # the file ends with a newline
+    if not lines:
+        if upto:
+            raise SigmarlError(f"{path} is empty, and its run has done {upto} iteration(s); {fix}")
+        return []
+    names = lines[0].split(",")[1:]
+    if lines[0].split(",")[0] != "iteration" or not names or len(set(names)) < len(names):
+        raise SigmarlError(f"{path}: line 1 is not a header `iteration,<metric>,...`; {fix}")
+    rows = []
+    for n, line in enumerate(lines[1:], 2):
+        try:
+            it, values = _metrics_row(line, names)
+        except ValueError as e:
+            if n == len(lines) and not whole:  # the line a kill cut short while it was appended
+                break
+            raise SigmarlError(f"{path}: line {n}: {e}; {fix}") from None
+        if upto is None or it <= upto:
+            rows.append((it, dict(zip(names, values, strict=True))))
+    return rows
+
+
+def _metrics_row(line: str, names: list[str]) -> tuple[int, list[float]]:
+    """A line's iteration and values; a ValueError says what is wrong with it."""
+    fields = line.split(",")
+    if len(fields) != len(names) + 1:
+        raise ValueError(f"{len(fields)} field(s), not the header's {len(names) + 1}")
+    it = fields[0].strip()
+    # digits only (int() would take "1_0" or "+3"), and few enough that int() cannot refuse them
+    if not (it.isascii() and it.isdigit() and len(it) <= len(str(MAX_ITERATION))
+            and 0 < int(it) <= MAX_ITERATION):
+        raise ValueError(f"iteration {fields[0][:20]!r} is not a whole number in 1..{MAX_ITERATION}")
+    values = []
+    for name, field in zip(names, fields[1:], strict=True):
+        try:
+            value = float(field)
+        except ValueError:
+            raise ValueError(f"{name} {field[:20]!r} is not a number") from None
+        if not math.isfinite(value):  # a report would average it into its tables
+            raise ValueError(f"{name} is {field.strip()[:20]}, not a finite number")
+        values.append(value)
+    return int(it), values
+
+
+def read_training_curve(path: Path) -> list[tuple[int, dict[str, float]]]:
+    """A finished run's `metrics.csv` as a report reads it: every line whole and checked
+    (`read_metrics`) and iterations 1..n each present, in iteration order; an iteration given
+    twice (a resume before resumes cut the file) counts with its last row."""
+    fix = "restore it from a copy, or delete it to report the run without its training curve"
+    last = dict(read_metrics(path, whole=True, fix=fix))  # a later row replaces an earlier one
+    n = max(last, default=0)
+    if len(last) != n or not n:  # the keys lie in 1..n: n of them are each of 1..n
+        lost = list(islice((it for it in range(1, n + 1) if it not in last), 6))
+        what = "holds no iterations" if not n else \
+            f"lacks iteration(s) {', '.join(map(str, lost[:5]))}{' ...' if len(lost) > 5 else ''} of 1..{n}"
+        raise SigmarlError(f"{path} {what}; {fix}")
+    return [(it, last[it]) for it in range(1, n + 1)]

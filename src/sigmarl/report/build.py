@@ -14,8 +14,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.ablation import MODELS
-from sigmarl.metrics import units_text
 from sigmarl.report.aggregate import (
     cells,
     model_order,
@@ -45,6 +43,7 @@ from sigmarl.report.scores import (
 )
 from sigmarl.report.seeds import seed_table, seeds_markdown
 from sigmarl.report.study_header import reward_differs, study_markdown
+from sigmarl.report.table_notes import table_notes
 from sigmarl.report.tables import (
     ResultTable,
     build_table,
@@ -79,58 +78,6 @@ class Report:
     verdicts_markdown: str = ""
 
 
-def _notes(
-    summary: pd.DataFrame,
-    composite: pd.DataFrame,
-    models: list[str],
-    *,
-    trim: bool,
-    compare_paper: bool,
-    ci: bool,
-    paper_scenarios: set[str] = frozenset(),
-) -> list[str]:
-    """The lines under the table that say what the numbers are."""
-    n = summary["n"][summary["metric"] == "AS"]
-    n_seeds = summary["n_seeds"][summary["metric"] == "AS"]
-    sims = _span(n)
-    seeds = _span(n_seeds)
-    notes = [
-        (f"Mean over {seeds} seeds of each seed's mean over its simulations ({sims} simulations per cell)"
-         if n_seeds.max() > 1 else f"Mean over {sims} simulations per cell")
-        + (" [95% bootstrap interval over seeds and simulations]" if ci else "")
-        + f"; {units_text(of_steps=True)}; best per row in bold."
-    ]
-    if trim:
-        notes.append("Collision rates without each evaluation's best and worst simulation.")
-    for scenario, g in composite.groupby("scenario", sort=False):
-        absent = [m for m in models if m not in set(g["model"])]
-        if absent:  # the scores then compare fewer models than the table's columns
-            notes.append(f"{scenario}: no evaluation rows for {', '.join(absent)}.")
-        for note in dict.fromkeys(g["note"]):
-            if note:
-                notes.append(f"{scenario}: {note}.")
-    if compare_paper:
-        notes.append("In parentheses: the paper's Table I (CD converted to real cm).")
-        others = [s for s in dict.fromkeys(summary["scenario"]) if s not in paper_scenarios]
-        if others:
-            notes.append(f"{', '.join(others)}: not in the paper's Table I, no paper numbers.")
-        if not trim:
-            notes.append(
-                "The paper dropped the best and worst simulation from its collision rates; "
-                "ours are not trimmed (use trim for a like-for-like comparison)."
-            )
-        if models != list(MODELS):
-            notes.append(
-                "The paper's composite scores compare M0..M5; ours compare "
-                f"{', '.join(models)}, so the two CS rows are not comparable."
-            )
-    return notes
-
-
-def _span(counts: pd.Series) -> str:
-    return f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}–{counts.max()}"
-
-
 @dataclass(frozen=True)
 class BuildOptions:
     """What `build_report` draws and where.
@@ -154,7 +101,7 @@ class BuildOptions:
     order: list[str] | None = None
     baseline: str | None = None
     design: Design | None = None
-    # per column one training config (study.md: what each column changes); defaults: the
+    # per column one training config (the study page: what each column changes); defaults: the
     # configuration without overrides; commit: the checkout the report is built at
     configs: dict | None = None
     defaults: object | None = None
@@ -244,7 +191,7 @@ def table_section(d: Draft) -> None:
     d.composite = composite.merge(intervals.drop(columns="CS"), on=["scenario", "model"], how="left")
     paper = paper_values(d.models) if o.compare_paper else None
     measured = set(paper.index.get_level_values("scenario")) if paper is not None else set()
-    d.notes = _notes(d.summary, d.composite, d.models, trim=o.trim, compare_paper=o.compare_paper, ci=o.ci,
+    d.notes = table_notes(d.summary, d.composite, d.models, trim=o.trim, compare_paper=o.compare_paper, ci=o.ci,
                      paper_scenarios=measured) + list(o.extra_notes)
     d.table = build_table(d.summary, d.composite, d.models, paper, d.notes)
     d.markdown = to_markdown(d.table, ci=o.ci)
@@ -285,7 +232,7 @@ def training_section(d: Draft) -> None:
 
 
 def study_section(d: Draft) -> None:
-    """What the report compares (study.md; `report.study_header`), the columns' configs given."""
+    """What the report compares (the study page, `report.study_header`), the columns' configs given."""
     o = d.options
     if o.configs is None or o.defaults is None:
         return

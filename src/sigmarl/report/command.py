@@ -13,12 +13,14 @@ from pathlib import Path
 
 from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
+from sigmarl.readers import read_run_config
 from sigmarl.report.aggregate import label_order
 from sigmarl.report.build import BuildOptions, Report, build_report
 from sigmarl.report.columns import check_columns, one_config_per_run, variant_configs
 from sigmarl.report.coverage import belongs, check, left_out
 from sigmarl.report.folder import checkpoint_of, read_many, read_results, run_folders
 from sigmarl.report.verdicts import design_of
+from sigmarl.run import Run
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, open_tracker, records
 from sigmarl.tracking.meta import git_commit
@@ -125,11 +127,9 @@ def _column_configs(rows, recorded: Callable[[str], Config | None], expected: di
 
 def _folder_configs(runs) -> dict[str, Config]:
     """label -> the config.yaml of its first run folder that has one (checked reader)."""
-    from sigmarl.readers import read_run_config
-
     out = {}
     for run in runs:
-        path = run.path / "config.yaml"
+        path = Run(run.path).config_file
         if run.label not in out and path.is_file():
             out[run.label] = read_run_config(path)
     return out
@@ -161,7 +161,7 @@ def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callab
 
 
 def _defaults() -> Config:
-    """The configuration without overrides: what study.md's shared settings are measured from."""
+    """The configuration without overrides: what the study page's shared settings are measured from."""
     from sigmarl.compose import compose_config
 
     return compose_config([])

@@ -27,6 +27,7 @@ from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
 from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
+from sigmarl.readers import read_training_curve
 from sigmarl.report.coverage import run_state
 from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
 from sigmarl.scenarios import scenario_names
@@ -174,12 +175,11 @@ def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | No
     path = Run(run.path).metrics_file
     if not path.is_file():
         return None, None
-    metrics = _read_csv(path)
-    missing = [c for c in ("iteration", REWARD_COLUMN) if c not in metrics.columns]
-    if missing:
-        return None, f"{path} lacks the column(s) {', '.join(missing)}: no training curve"
-    # a resumed run may have logged an iteration twice: the last record counts
-    metrics = metrics.drop_duplicates("iteration", keep="last").sort_values("iteration", kind="stable")
+    # checked like a resume reads it (iterations 1..n, finite values), or one line naming the line
+    history = read_training_curve(path)
+    if REWARD_COLUMN not in history[0][1]:
+        return None, f"{path} lacks the column {REWARD_COLUMN}: no training curve"
+    metrics = pd.DataFrame([values for _, values in history]).assign(iteration=[it for it, _ in history])
     curve = pd.DataFrame({"model": model, "seed": run.seed, "iteration": metrics["iteration"].to_numpy(),
                           "reward": metrics[REWARD_COLUMN].to_numpy()})
     times = [c for c in TIMINGS if c in metrics.columns]

@@ -1,7 +1,7 @@
-"""study.md: what a report compares. Per column its label, fingerprint, seeds and the training
-settings that define it against the baseline; the settings every column shares where they
-differ from the defaults (a command line such as env.n_agents=5 included); the budget; the
-commit the report was built at. A label alone (NA0.2, K4) says none of this."""
+"""The report's study page ("study.md"): what it compares. Per column its label, fingerprint, seeds
+and the training settings that define it against the baseline; the settings every column shares
+where they differ from the defaults (a command line such as env.n_agents=5 included); the
+budget; the commit the report was built at. A label alone (NA0.2, K4) says none of this."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def _span(values) -> str:
 
 def study_markdown(configs: Mapping[str, Config], rows: pd.DataFrame, models: Sequence[str], baseline: str | None,
                    defaults: Config, commit: str | None) -> str:
-    """The report's study.md (see the module's docstring); `configs`: one training config per
+    """The report's study page (see the module's docstring); `configs`: one training config per
     column (a run's own where it is on this machine)."""
     shown = [m for m in models if m in configs]
     against = configs.get(baseline) if baseline else None

@@ -6,7 +6,11 @@ last iterations of its curve, so the two columns compare like with like.
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
+
+from sigmarl.errors import SigmarlError
+from sigmarl.readers import MAX_ITERATION
 
 LAST = 25  # iterations averaged for the "final" reward (the curves are noisy per iteration)
 COLUMNS = ["model", "seed", "iterations", "compute_min", "reward_last", "reward_best"]
@@ -25,12 +29,26 @@ def training_summary(curves: pd.DataFrame, models: list[str]) -> pd.DataFrame:
         if "seed" not in c.columns:
             c = c.assign(seed=0)
         for seed, g in c.groupby("seed", sort=True):
+            _check_curve(g, model, seed)
             g = g.sort_values("iteration", kind="stable")
             seconds = g["seconds"].sum(min_count=1) if "seconds" in g.columns else float("nan")
             rows.append({"model": model, "seed": int(seed), "iterations": int(g["iteration"].max()),
                          "compute_min": seconds / 60, "reward_last": g["reward"].tail(LAST).mean(),
                          "reward_best": g["reward"].max()})
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def _check_curve(g: pd.DataFrame, model: str, seed) -> None:
+    """A curve the summary can trust, whether a folder's reader checked it or a tracking store
+    gave it: whole iterations in 1..MAX_ITERATION and finite rewards, else one line."""
+    it = pd.to_numeric(g["iteration"], errors="coerce").astype(float)
+    reward = pd.to_numeric(g["reward"], errors="coerce").astype(float)
+    bad = ~((it % 1 == 0) & (it > 0) & (it <= MAX_ITERATION)) | ~np.isfinite(reward)
+    if bad.any():
+        row = g[bad.to_numpy()].iloc[0]
+        raise SigmarlError(f"the training curve of {model} seed {seed} is damaged: iteration {row['iteration']!r}, "
+                           f"reward {row['reward']!r} (iterations are whole numbers in 1..{MAX_ITERATION}, "
+                           "rewards finite); restore its training record (metrics.csv, or the tracking store's run)")
 
 
 def paper_last_rewards(paper: pd.DataFrame) -> dict[str, float]:

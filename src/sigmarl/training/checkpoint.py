@@ -8,11 +8,16 @@ small (kind "policy"): the policy's weights and what loading and evaluating it n
 
 Everything read back is validated: a file that is not a checkpoint, lacks a key, or holds
 weights that are not finite or whose names or shapes differ from the network its config
-builds is one SigmarlError.
+builds is one SigmarlError. Each file carries the SHA-256 of what it holds (key "sha256",
+format 2; written in the same atomic write, so a kill never parts the two): a flipped bit in
+a weight would otherwise load as a plausible number. A format-1 checkpoint was written before
+the checksum and loads as it did; one whose content differs from its checksum is refused as
+damaged (no older resume point is kept to fall back to).
 """
 
 from __future__ import annotations
 
+import hashlib
 import random
 from collections.abc import Mapping
 from pathlib import Path
@@ -27,11 +32,13 @@ from sigmarl.errors import SigmarlError
 # the run folder's checkpoint names, read as `ckpt.RESUME_FILE` etc.
 from sigmarl.run import BEST_FILE, FINAL_FILE, RESUME_FILE, write_atomic  # noqa: F401
 
-FORMAT = 1
+FORMAT = 2  # 2: carries the checksum of its content (CHECKSUM); a bit flip cannot make it 1
+LEGACY_FORMAT = 1  # written before the checksum: loads unchecked, as it always did
 
 POLICY_KEYS = ("iteration", "policy", "config", "dims")  # what every checkpoint holds
 RESUME_KEYS = (*POLICY_KEYS, "critic", "optimizer", "rng")
 TRAINING_ONLY = ("critic", "optimizer", "rng")  # left out of best.pt and final.pt
+CHECKSUM = "sha256"  # the digest of everything else the checkpoint holds (`digest`)
 
 
 def policy_only(state: dict[str, Any]) -> dict[str, Any]:
@@ -42,6 +49,8 @@ def policy_only(state: dict[str, Any]) -> dict[str, Any]:
 def save_atomic(state: dict[str, Any], path: Path) -> None:
     """A checkpoint written whole or not at all (`sigmarl.run.write_atomic`); a failed write (a
     full disk) is one line, and the previous checkpoint is kept."""
+    state = {**{k: v for k, v in state.items() if k != CHECKSUM}, "format": FORMAT}
+    state[CHECKSUM] = digest(state)
     try:
         write_atomic(path, lambda f: torch.save(state, f))
     except BaseException as e:
@@ -65,8 +74,14 @@ def load(path: Path, device: str | torch.device = "cpu", resume: bool = False) -
         # message advises weights_only=False, which would run whatever the file holds
         raise SigmarlError(f"checkpoint {path} is unreadable: truncated, or not a sigmarl "
                            f"checkpoint ({type(e).__name__})") from e
-    if not isinstance(state, dict) or state.get("format") != FORMAT:
-        raise SigmarlError(f"{path} is not a sigmarl checkpoint (format {FORMAT})")
+    if not isinstance(state, dict) or state.get("format") not in (LEGACY_FORMAT, FORMAT):
+        raise SigmarlError(f"{path} is not a sigmarl checkpoint (format {LEGACY_FORMAT} or {FORMAT})")
+    if (state["format"] == FORMAT or CHECKSUM in state) and not _intact(state):
+        # no earlier resume point is kept to fall back to: refused, never resumed
+        what = "resumed: restore it from a copy, or move the run folder away and train again" if resume \
+            else "used: restore it from a copy"
+        raise SigmarlError(f"checkpoint {path} is damaged: what it holds differs from the checksum it was "
+                           f"saved with (a flipped bit, or an edit); it cannot be {what}")
     kind = state.get("kind", "resume")  # files written before best/final became small
     needed = RESUME_KEYS if resume or kind == "resume" else POLICY_KEYS
     missing = sorted(set(needed) - state.keys())
@@ -87,6 +102,45 @@ def load(path: Path, device: str | torch.device = "cpu", resume: bool = False) -
     if not isinstance(state["config"], dict) or not isinstance(state["iteration"], int):
         raise SigmarlError(f"checkpoint {path}: 'config' or 'iteration' is malformed")
     return state
+
+
+def _intact(state: dict[str, Any]) -> bool:
+    """Whether the content matches the checksum it was saved with (taken out of `state`)."""
+    saved = state.pop(CHECKSUM, None)  # a format-2 file without one: its key is damaged
+    try:
+        return saved == digest(state)
+    except Exception:  # content too garbled even to hash (a tensor torch cannot read back)
+        return False
+
+
+def digest(state: Mapping[str, Any]) -> str:
+    """SHA-256 of a checkpoint's content but its checksum: every tensor's dtype, shape and bytes
+    and every plain value, in an order and form a save/load round trip keeps (dict keys sorted,
+    lists and tuples alike, tensors on the CPU)."""
+    h = hashlib.sha256()
+
+    def feed(x: Any) -> None:
+        if isinstance(x, torch.Tensor):
+            flat = torch.empty(x.numel(), dtype=x.dtype).copy_(x.detach().reshape(-1))  # dense, stride 1
+            h.update(f"T{x.dtype}{tuple(x.shape)}:".encode())
+            h.update(flat.view(torch.uint8).numpy().tobytes())
+        elif isinstance(x, Mapping):
+            h.update(b"{")
+            for key in sorted(x, key=repr):
+                feed(key)
+                feed(x[key])
+            feed(getattr(x, "_metadata", None))  # a state_dict's versions, which loading it reads
+            h.update(b"}")
+        elif isinstance(x, list | tuple):  # random.getstate's tuples may come back as lists
+            h.update(b"[")
+            for item in x:
+                feed(item)
+            h.update(b"]")
+        else:  # str, int, float, bool, None: their repr reads back the same
+            h.update(f"{type(x).__name__}:{x!r};".encode())
+
+    feed({k: v for k, v in state.items() if k != CHECKSUM})
+    return h.hexdigest()
 
 
 def config_of(state: dict[str, Any], path: Path) -> Config:

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from sigmarl.errors import SigmarlError
+from sigmarl.readers import read_metrics
 from sigmarl.run import METRICS_FILE  # noqa: F401  (its callers name the file through here)
 
 
@@ -26,11 +27,12 @@ def append(path: Path, iteration: int, metrics: Mapping[str, float]) -> None:
 
 
 def read(path: Path, upto: int | None = None) -> list[tuple[int, dict[str, float]]]:
-    """[(iteration, {name: value})] of iterations 1..`upto` (all with None), checked: every one
+    """[(iteration, {name: value})] of iterations 1..`upto` (all with None), checked: each line
+    by `sigmarl.readers.read_metrics` (whole-number iterations, finite values), every iteration
     present once and in order. Only the last line may be cut (a kill while appending), and
     rows after `upto` are dropped (a resume computes them again); any other damage is one
     SigmarlError naming the file: a resume never goes on past a lost iteration."""
-    rows = _parse(path, upto)
+    rows = read_metrics(path, upto)
     found = [it for it, _ in rows]
     want = list(range(1, (upto if upto is not None else len(found)) + 1))
     if found != want:
@@ -38,43 +40,6 @@ def read(path: Path, upto: int | None = None) -> list[tuple[int, dict[str, float
         what = (f"lacks iteration(s) {_span(lost)}" if lost else "holds an iteration twice or out of order")
         raise SigmarlError(f"{path} {what} of the {len(want)} its run has done (cut or edited); restore it "
                            "from a copy, or move the run folder away and train again")
-    return rows
-
-
-def _parse(path: Path, upto: int | None) -> list[tuple[int, dict[str, float]]]:
-    fix = "restore it from a copy, or move the run folder away and train again"
-    if upto == 0:  # a resume before the first iteration needs no row (a cut header included)
-        return []
-    if not path.exists():
-        if upto:
-            raise SigmarlError(f"{path} is missing, and its run has done {upto} iteration(s); {fix}")
-        return []
-    try:
-        lines = path.read_bytes().decode("utf-8").split("\n")
-    except UnicodeDecodeError as e:
-        raise SigmarlError(f"{path} is not a metrics file (byte {e.start} is not text); {fix}") from None
-    if lines and lines[-1] == "":
-        lines.pop()  # the file ends with a newline
-    if not lines:
-        if upto:
-            raise SigmarlError(f"{path} is empty, and its run has done {upto} iteration(s); {fix}")
-        return []
-    names = lines[0].split(",")[1:]
-    if lines[0].split(",")[0] != "iteration" or not names or len(set(names)) < len(names):
-        raise SigmarlError(f"{path}: line 1 is not a header `iteration,<metric>,...`; {fix}")
-    rows = []
-    for n, line in enumerate(lines[1:], 2):
-        try:
-            fields = line.split(",")
-            if len(fields) != len(names) + 1:
-                raise ValueError
-            it, values = int(fields[0]), [float(v) for v in fields[1:]]
-        except ValueError:
-            if n == len(lines):  # the line a kill cut short while it was appended
-                break
-            raise SigmarlError(f"{path}: line {n} is not a row of {len(names) + 1} numbers; {fix}") from None
-        if upto is None or it <= upto:
-            rows.append((it, dict(zip(names, values, strict=True))))
     return rows
 
 
