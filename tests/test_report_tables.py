@@ -209,7 +209,7 @@ def test_empty_input_is_a_clear_error(tmp_path):
 def test_figures(tmp_path):
     curves = pd.DataFrame(
         [{"model": m, "seed": s, "iteration": i, "reward": i * 0.1 + s}
-         for m in MODELS[:2] for s in (0, 1) for i in range(5)]
+         for m in MODELS[:2] for s in (0, 1) for i in range(1, 6)]
     )  # fmt: skip
     rows = hand_rows(models=MODELS[:2])
     report = build_report(rows[rows.scenario.isin(SCENARIOS[:2])], BuildOptions(out_dir=tmp_path), curves)
