@@ -115,6 +115,8 @@ def test_a_scenario_renders_its_own_map_or_a_given_one(env, kit):
     assert render_state(sc).axes[0].get_title().startswith(sc.road_map.name)
     other = kit.straight_road_map()
     assert render_state(sc, road_map=other).axes[0].get_title().startswith(other.name)
+    # an evaluation's frames name what is shown, not only the map
+    assert render_state(sc, title="On-Ramp · M2 seed 3").axes[0].get_title().startswith("On-Ramp · M2 seed 3 · ")
 
 
 def test_test_mode_collision_is_drawn_where_it_happened():

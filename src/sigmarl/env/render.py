@@ -114,6 +114,7 @@ class Scene:
         show_ref_points: bool = True,
         figsize: tuple[float, float] = FIGSIZE,
         dpi: int = DPI,
+        title: str | None = None,
     ):
         if ax is None:
             fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
@@ -125,7 +126,7 @@ class Scene:
         if road_map is None:
             raise SigmarlError("rendering a bare scenario needs its map: pass road_map=...")
         plot_map(road_map, ax, routes=False)
-        self.name = road_map.name
+        self.name = title or road_map.name  # e.g. the scenario, model and seed of an evaluation
         n = scenario.n_agents
         self.colors = _agent_colors(n)
         self.vehicles = [
@@ -198,6 +199,7 @@ def render_state(
     show_ref_points: bool = True,
     figsize: tuple[float, float] = FIGSIZE,
     dpi: int = DPI,
+    title: str | None = None,
 ) -> Figure:
     """Draw one environment's current state: map, vehicles, reference points, collisions.
 
@@ -206,7 +208,7 @@ def render_state(
     `road_map` attribute of the scenario).
     """
     scenario, vmas_env, env_map = _unwrap(env_or_scenario)
-    scene = Scene(scenario, road_map or env_map, ax, show_ref_points, figsize, dpi)
+    scene = Scene(scenario, road_map or env_map, ax, show_ref_points, figsize, dpi, title)
     scene.update(snapshot(scenario, env_index, _step_count(vmas_env, env_index)))
     return scene.fig
 
@@ -258,6 +260,7 @@ def render_rollout(
     fps: int = 20,
     road_map: RoadMap | None = None,
     show_ref_points: bool = True,
+    title: str | None = None,
 ) -> Path:
     """Run `env` for `steps` steps and write one frame per step (the state after it).
 
@@ -268,7 +271,7 @@ def render_rollout(
     path = Path(path)
     write = _writer_for(path)
     scenario, vmas_env, env_map = _unwrap(env)
-    scene = Scene(scenario, road_map or env_map, show_ref_points=show_ref_points)
+    scene = Scene(scenario, road_map or env_map, show_ref_points=show_ref_points, title=title)
     frames = []
     td = env.reset()
     with torch.no_grad():

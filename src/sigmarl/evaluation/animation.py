@@ -30,6 +30,7 @@ def animate_checkpoint(path: Path, scenarios: list[str], steps: int, seed: int, 
                        map_cfg=scenario_map_config(scenario), seed=seed, device=device)
         with set_exploration_type(ExplorationType.DETERMINISTIC):
             gif = render_rollout(env, actor, steps=steps,
-                                 path=out_dir / "animations" / f"{prefix}_{scenario}.gif")
+                                 path=out_dir / "animations" / f"{prefix}_{scenario}.gif",
+                                 title=f"{scenario} · {prefix} seed {train_cfg.seed}")
         out[f"animation_{scenario}"] = gif
     return out

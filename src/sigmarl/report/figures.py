@@ -8,6 +8,9 @@ import numpy as np
 import pandas as pd
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.ticker import MaxNLocator
 
 from sigmarl.metrics import BY_NAME, label
 from sigmarl.report.verdicts import seed_values
@@ -61,6 +64,10 @@ def plot_distributions(
                 ax.set_yscale("symlog", linthresh=0.1, linscale=0.5)
                 ax.set_ylim(0, top)
                 ax.set_yticks(ticks, [f"{t:g}" for t in ticks])
+    fig.legend(handles=[Patch(fc="none", ec="black", label="box: quartiles, whiskers: 1.5 IQR"),
+                        Line2D([], [], color="tab:orange", label="median"),
+                        Line2D([], [], ls="", marker=".", color="tab:blue", label="one simulation")],
+               loc="outside lower center", ncols=3, fontsize=8, frameon=False)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return path
@@ -82,6 +89,7 @@ def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | N
         models = list(dict.fromkeys(curves["model"]))
     fig = Figure(figsize=(6.4, 4.0), layout="constrained")
     ax = fig.subplots()
+    banded = False
     for model in models:
         c = curves[curves["model"] == model]
         if c.empty:
@@ -90,51 +98,80 @@ def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | N
             per_seed = c.groupby(["iteration", "seed"])["reward"].mean().unstack("seed")
         else:
             per_seed = c.groupby("iteration")["reward"].mean().to_frame()
-        line = ax.plot(per_seed.index, per_seed.mean(axis=1), label=model, lw=1.2)[0]
+        n = per_seed.shape[1]
+        line = ax.plot(per_seed.index, per_seed.mean(axis=1), label=f"{model} ({_seeds(n)})", lw=1.2)[0]
         if paper is not None and (p := paper[paper["model"] == model]).size:
             ax.plot(p["iteration"], p["reward"], ls="--", lw=0.9, color=line.get_color(),
                     label=f"{model} (paper)")
-        if per_seed.shape[1] > 1:
-            ax.fill_between(
-                per_seed.index,
-                per_seed.min(axis=1),
-                per_seed.max(axis=1),
-                color=line.get_color(),
-                alpha=0.2,
-                lw=0,
-            )
-    ax.set_xlabel("iteration")
-    ax.set_ylabel("mean episode reward")
-    ax.grid(alpha=0.3)
+        if n > 1:
+            banded = True
+            ax.fill_between(per_seed.index, per_seed.min(axis=1), per_seed.max(axis=1),
+                            color=line.get_color(), alpha=0.2, lw=0)
+    _iteration_axis(ax)
+    ax.set_title("training reward per iteration" + (": mean over seeds, band: their range" if banded else ""),
+                 fontsize=9)
     ax.legend(ncols=2, fontsize=8)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return path
 
 
+def _seeds(n: int) -> str:
+    return f"{n} seed{'s' if n != 1 else ''}"
+
+
+def _iteration_axis(ax) -> None:
+    """Whole iterations on the x axis (a 5-iteration run would otherwise get ticks at 1.5)."""
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("mean episode reward")
+    ax.grid(alpha=0.3)
+
+
 PROFILE_BOOT = 1000
+# panels per row of the performance profiles and of the heatmap: readable at 1280 px
+PANELS_PER_ROW = 3
+HEATMAP_COLUMNS = 7
 
 
-def profile_thresholds(top: float) -> np.ndarray:
-    """Thresholds (%) from 0 to `top`: even steps up to 0.1 %, then evenly on a log scale, as
-    the axis is drawn (collision rates range from hundredths of a percent to tens)."""
-    linear = np.linspace(0.0, min(top, 0.1), 21)
-    return np.unique(np.concatenate([linear, np.geomspace(0.1, top, 80) if top > 0.1 else []]))
+def profile_axis(values: np.ndarray) -> tuple[float, float]:
+    """(linear threshold, top) of a profile's τ axis, from the collision rates (%) it shows: linear
+    up to a round number at or below the smallest non-zero rate, logarithmic above, up to the largest rate. A
+    fixed axis pressed a study of 5-40 % collisions against its right edge."""
+    positive = values[np.isfinite(values) & (values > 0)]
+    if not positive.size:
+        return 0.1, 1.0
+    top = float(positive.max()) * 1.05
+    smallest = float(positive.min())
+    decade = 10.0 ** np.floor(np.log10(smallest))
+    linthresh = max(f * decade for f in (1, 2, 5) if f * decade <= smallest)  # a round number at or below it
+    return float(min(max(linthresh, 1e-3), top / 10)), top
+
+
+def profile_thresholds(linthresh: float, top: float) -> np.ndarray:
+    """Thresholds (%) from 0 to `top`, spaced as the axis is drawn: even steps up to `linthresh`,
+    then evenly on a log scale."""
+    linear = np.linspace(0.0, min(top, linthresh), 21)
+    return np.unique(np.concatenate([linear, np.geomspace(linthresh, top, 80) if top > linthresh else []]))
 
 
 def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path) -> Path:
     """rliable-style performance profiles of CR_total: per model, the fraction of simulations
     with CR_total above tau, one panel per scenario and one over all scenarios (their mean),
-    with 95% two-level (seeds, then simulations) bootstrap bands. Lower is better."""
+    with 95% two-level (seeds, then simulations) bootstrap bands; a grid of panels. Lower is
+    better."""
     values = seed_values(rows, "CR_total")  # in %
-    panels = [*scenarios, "all scenarios"]
-    fig = Figure(figsize=(3.4 * len(panels), 3.0), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(1, len(panels), squeeze=False)[0])
-    for ax, panel in zip(axes, panels, strict=True):
+    panels = [*scenarios, "all scenarios"] if len(scenarios) > 1 else list(scenarios)
+    ncols = min(PANELS_PER_ROW, len(panels))
+    nrows = -(-len(panels) // ncols)
+    fig = Figure(figsize=(4.2 * ncols, 3.2 * nrows + 0.5), layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax, panel in zip(axes, panels, strict=False):
         chosen = scenarios if panel == "all scenarios" else [panel]
-        top = max((float(g.max()) for (m, s), v in values.items() if s in chosen and m in models for g in v),
-                  default=1.0)
-        taus = profile_thresholds(top)
+        shown = [np.concatenate([np.ravel(g) for g in v]) for (m, s), v in values.items()
+                 if s in chosen and m in models]
+        linthresh, top = profile_axis(np.concatenate(shown) if shown else np.array([]))
+        taus = profile_thresholds(linthresh, top)
         for model in models:
             per_scenario = {s: values[(model, s)] for s in chosen if (model, s) in values}
             if not per_scenario:
@@ -142,16 +179,24 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
             point, lo, up = scenario_profiles(per_scenario, taus, PROFILE_BOOT, f"{model}|{panel}")
             line = ax.step(taus, point, where="post", label=model, lw=1.1)[0]
             ax.fill_between(taus, lo, up, step="post", color=line.get_color(), alpha=0.2, lw=0)
-        ax.set_xscale("symlog", linthresh=0.1)
+        ax.set_xscale("symlog", linthresh=linthresh)
         ax.set_xlim(0, taus[-1])
+        decades = [10.0 ** k for k in range(-3, 3) if 3 * linthresh <= 10.0 ** k <= taus[-1]]
+        ticks = [0.0, linthresh, *decades]
+        ax.set_xticks(ticks, [f"{x:g}" for x in ticks])  # symlog's own labels overlap at 0
         ax.set_ylim(0, 1.02)
-        ax.set_title(panel, fontsize=9)
+        ax.set_title(panel, fontsize=10)
         ax.set_xlabel(f"τ: {label('CR_total')}")
+        ax.set_ylabel("fraction with CR_total > τ")
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("fraction with CR_total > τ")
-    axes[-1].legend(fontsize=7)
+    for ax in axes[len(panels):]:
+        ax.set_visible(False)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 8), fontsize=9, frameon=False)
+    fig.suptitle("performance profiles of CR_total (lower is better; band: 95% bootstrap over seeds "
+                 "and simulations)", fontsize=10)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=110)
     return path
 
 
@@ -170,13 +215,12 @@ def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str] | Non
         per_seed = c.groupby(["iteration", "seed"])["reward"].mean().unstack("seed")
         mean, lo, hi = seed_band(per_seed.to_numpy(), n_boot, bs.rng_for("training-band", model))
         n = per_seed.shape[1]
-        line = ax.plot(per_seed.index, mean, label=f"{model} ({n} seed{'s' if n > 1 else ''})", lw=1.1)[0]
-        if n > 1:
+        line = ax.plot(per_seed.index, mean, label=f"{model} ({_seeds(n)}{', no band' if n == 1 else ''})",
+                       lw=1.1)[0]
+        if n > 1:  # a bootstrap over one seed would draw a band of width zero as if it were certain
             ax.fill_between(per_seed.index, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
-    ax.set_xlabel("iteration")
-    ax.set_ylabel("mean episode reward")
-    ax.set_title("mean over seeds, 95% bootstrap band over seeds", fontsize=9)
-    ax.grid(alpha=0.3)
+    _iteration_axis(ax)
+    ax.set_title("mean training reward over seeds, 95% bootstrap band over seeds", fontsize=9)
     ax.legend(ncols=2, fontsize=8)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
@@ -187,27 +231,35 @@ def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str],
                  metric: str = "CR_total") -> Path:
     """A models x scenarios matrix of one metric's estimates (the table's cells), each cell
     annotated with its estimate and 95 % interval; colour on a log scale, so that 0.05 % and
-    5 % both show."""
+    5 % both show. More than HEATMAP_COLUMNS scenarios are split into stacked panels, so that
+    the numbers stay readable at 1280 px."""
     cells = summary[summary["metric"] == metric].set_index(["model", "scenario"])
-    mean = np.array([[cells["mean"].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
-    lo = np.array([[cells["ci_low"].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
-    hi = np.array([[cells["ci_high"].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
+
+    def grid(column: str) -> np.ndarray:
+        return np.array([[cells[column].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
+
+    mean, lo, hi = grid("mean"), grid("ci_low"), grid("ci_high")
     positive = mean[np.isfinite(mean) & (mean > 0)]
     floor = max(float(positive.min()) if positive.size else 0.01, 0.01)
     top = max(float(np.nanmax(mean)) if np.isfinite(mean).any() else 1.0, floor * 10)
-    fig = Figure(figsize=(1.25 * len(scenarios) + 2.0, 0.75 * len(models) + 1.8))
-    ax = fig.add_subplot()
-    image = ax.imshow(np.clip(mean, floor, None), cmap="magma_r", norm=LogNorm(floor, top), aspect="auto")
-    for i in range(len(models)):
-        for j in range(len(scenarios)):
-            if np.isfinite(mean[i, j]):
-                dark = np.log(max(mean[i, j], floor) / floor) > 0.6 * np.log(top / floor)
-                ax.text(j, i, f"{mean[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]", ha="center", va="center",
-                        fontsize=6.5, color="white" if dark else "black")
-    ax.set_xticks(range(len(scenarios)), scenarios, rotation=40, ha="right", fontsize=8)
-    ax.set_yticks(range(len(models)), models, fontsize=9)
-    fig.colorbar(image, ax=ax, label=f"{label(metric)}, log scale")
-    ax.set_title(f"{metric}: mean over seeds [95% interval over seeds and simulations]", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
+    norm = LogNorm(floor, top)
+    chunks = [list(range(i, min(i + HEATMAP_COLUMNS, len(scenarios))))
+              for i in range(0, len(scenarios), HEATMAP_COLUMNS)]
+    width = 1.55 * len(chunks[0]) + 2.6
+    fig = Figure(figsize=(width, (0.62 * len(models) + 1.3) * len(chunks) + 0.6), layout="constrained")
+    axes = fig.subplots(len(chunks), 1, squeeze=False)[:, 0]
+    for ax, cols in zip(axes, chunks, strict=True):
+        image = ax.imshow(np.clip(mean[:, cols], floor, None), cmap="magma_r", norm=norm, aspect="auto")
+        for i in range(len(models)):
+            for k, j in enumerate(cols):
+                if np.isfinite(mean[i, j]):
+                    dark = np.log(max(mean[i, j], floor) / floor) > 0.6 * np.log(top / floor)
+                    ax.text(k, i, f"{mean[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]", ha="center",
+                            va="center", fontsize=8, color="white" if dark else "black")
+        ax.set_xticks(range(len(cols)), [scenarios[j] for j in cols], rotation=25, ha="right", fontsize=9)
+        ax.set_yticks(range(len(models)), models, fontsize=9)
+    fig.colorbar(image, ax=list(axes), label=f"{label(metric)}, log scale", shrink=0.8)
+    fig.suptitle(f"{metric}: mean over seeds [95% interval over seeds and simulations]", fontsize=10)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
     return path
