@@ -23,6 +23,7 @@ import tempfile
 from pathlib import Path
 
 from sigmarl.cli import main as sigmarl
+from sigmarl.report.build import TABLE_HEADING
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = "results/paper-budget"  # relative to ROOT: the report's notes name run folders by it
@@ -71,7 +72,10 @@ def _report(folders: list[str], options: list[str]) -> dict[str, str]:
             os.chdir(here)
         if rc:
             sys.exit(rc)
-        return {p.name: p.read_text(encoding="utf-8") for p in Path(tmp).glob("*.md")}
+        files = {p.name: p.read_text(encoding="utf-8") for p in Path(tmp).glob("*.md")}
+    # a page's block holds the table itself; what its columns are is the page's own prose
+    files["table.md"] = files["table.md"].split(f"\n{TABLE_HEADING}\n\n", 1)[-1]
+    return files
 
 
 def block(text: str, name: str, page: str = "README.md") -> tuple[int, int]:

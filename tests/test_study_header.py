@@ -5,8 +5,10 @@ comparison across different reward functions is marked not comparable."""
 from __future__ import annotations
 
 import pandas as pd
+from test_report_tables import hand_rows
 
 from sigmarl.compose import compose_config
+from sigmarl.report import BuildOptions, build_report
 from sigmarl.report.study_header import reward_differs, shared_settings, study_markdown
 
 
@@ -45,3 +47,22 @@ def test_different_rewards_are_marked_not_comparable():
     text = study_markdown({"R0": a, "R1": b}, _rows({"R0": [0], "R1": [0]}), ["R0", "R1"], "R0", a, "c")
     assert "train on different rewards (env.reward.progress)" in text
     assert "| R1 | " in text and "`env.reward.progress=20" in text
+
+
+def test_table_md_opens_with_the_header_and_the_latex_caption_says_each_columns_change(tmp_path):
+    line = ["env.n_agents=5"]
+    configs = {"M0": compose_config([*line, "obs=full"]), "M4": compose_config([*line, "obs=no_distance_to_boundaries"])}
+    report = build_report(hand_rows(["M0", "M4"]), BuildOptions(
+        out_dir=tmp_path, models=["M0", "M4"], baseline="M0", latex=True, figures=False, configs=configs,
+        defaults=compose_config([]), commit="abc123"))
+    table = (tmp_path / "table.md").read_text(encoding="utf-8")
+    head, rest = table.split("\n## Table\n", 1)
+    assert head.startswith("# What this table compares")
+    assert f"| M4 | `{configs['M4'].fingerprint}` | 1 (0) | `obs.distance_to_boundaries=false` |" in head
+    assert "- `env.n_agents=5` (default 4)" in head and "4 scenarios (CPM, Intersection, On-Ramp, Roundabout) × 3 simulations" in head
+    assert "| Scenario | Metric | M0 | M4 |" in rest and report.markdown == table
+    assert "abc123" not in table  # the commit is the study page's: the same rows give the same table at any commit
+    tex = (tmp_path / "table.tex").read_text(encoding="utf-8")
+    cap = next(ln for ln in tex.splitlines() if ln.startswith("\\caption{"))
+    assert r"Columns: M0: baseline; M4: obs.distance\_to\_boundaries=false." in cap
+    assert r"All: env.n\_agents=5 (default 4)." in cap and "seeds: 1 a column" in cap

@@ -42,7 +42,7 @@ from sigmarl.report.scores import (
     improvement_overall,
 )
 from sigmarl.report.seeds import seed_table, seeds_markdown
-from sigmarl.report.study_header import reward_differs, study_markdown
+from sigmarl.report.study_header import caption, reward_differs, study_markdown
 from sigmarl.report.table_notes import table_notes
 from sigmarl.report.tables import (
     ResultTable,
@@ -56,6 +56,8 @@ from sigmarl.report.tables import (
 from sigmarl.report.training import paper_last_rewards, training_markdown, training_summary
 from sigmarl.report.verdicts import Design, verdict_table, verdicts_markdown
 
+# in table.md, between what the columns are and the table itself
+TABLE_HEADING = "## Table"
 # Fixed formatting of every CSV's floats: the same rows give byte-identical files.
 FLOAT_FORMAT = "%.10g"
 
@@ -195,6 +197,10 @@ def table_section(d: Draft) -> None:
                      paper_scenarios=measured) + list(o.extra_notes)
     d.table = build_table(d.summary, d.composite, d.models, paper, d.notes)
     d.markdown = to_markdown(d.table, ci=o.ci)
+    if o.configs is not None and o.defaults is not None:  # the study page's header: what the columns are
+        d.markdown = study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit,
+                                    title="What this table compares", with_commit=False) \
+            + f"\n{TABLE_HEADING}\n\n" + d.markdown
     d.write("markdown", "table.md", d.markdown)
     d.write("csv", "table.csv", to_csv_frame(d.table))
     d.write("summary", "summary.csv", d.summary)
@@ -254,8 +260,14 @@ def seeds_section(d: Draft) -> None:
 
 
 def latex_section(d: Draft) -> None:
-    if d.options.latex:
-        d.write("latex", "table.tex", to_latex(d.table, ci=d.options.ci))
+    """table.tex; its caption says what each column changes, from the study page's header."""
+    o = d.options
+    if not o.latex:
+        return
+    text = "Evaluation of the models in the test scenarios (best per row in bold)."
+    if o.configs is not None and o.defaults is not None:
+        text += " " + caption(o.configs, d.rows, d.models, d.baseline, o.defaults)
+    d.write("latex", "table.tex", to_latex(d.table, ci=o.ci, caption=text))
 
 
 def verdicts_section(d: Draft) -> None:

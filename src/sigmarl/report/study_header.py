@@ -18,10 +18,10 @@ def _value(settings: dict, key: str) -> str:
     return json.dumps(settings.get(key), default=str) if key in settings else "(unset)"
 
 
-def _changes(cfg: Config, against: Config) -> str:
+def _changes(cfg: Config, against: Config, quote: str = "`") -> str:
     mine = training_settings(cfg)
     keys = changed_keys(cfg, against)
-    return ", ".join(f"`{k}={_value(mine, k)}`" for k in keys) or "–"
+    return ", ".join(f"{quote}{k}={_value(mine, k)}{quote}" for k in keys) or "–"
 
 
 def shared_settings(configs: Sequence[Config], defaults: Config) -> list[str]:
@@ -50,13 +50,48 @@ def _span(values) -> str:
     return f"{values[0]:,}" if len(values) == 1 else f"{values[0]:,}–{values[-1]:,}"
 
 
-def study_markdown(configs: Mapping[str, Config], rows: pd.DataFrame, models: Sequence[str], baseline: str | None,
-                   defaults: Config, commit: str | None) -> str:
-    """The report's study page (see the module's docstring); `configs`: one training config per
-    column (a run's own where it is on this machine)."""
+def budget(cfgs: Sequence[Config], rows: pd.DataFrame, models: Sequence[str]) -> list[str]:
+    """The budget in phrases: training iterations and frames, seeds a column, the evaluation."""
+    parts = []
+    if cfgs:
+        its = [c.ppo.iterations for c in cfgs]
+        frames = [c.ppo.iterations * c.ppo.frames_per_iteration for c in cfgs]
+        parts.append(f"training: {_span(its)} iterations, {_span(frames)} frames a seed")
+    per_run = rows.groupby(["model", "seed", "scenario"], sort=False)["simulation"].nunique()
+    scenarios = list(dict.fromkeys(rows["scenario"].astype(str)))
+    steps = sorted({c.eval.steps for c in cfgs})
+    steps_text = f" × {'/'.join(map(str, steps))} steps" if steps else ""
+    seeds = rows.groupby("model")["seed"].nunique()
+    parts.append(f"seeds: {_span(seeds[[m for m in models if m in seeds.index]])} a column")
+    parts.append(f"evaluation: {len(scenarios)} scenarios ({', '.join(scenarios)}) × "
+                 f"{_span(per_run)} simulations{steps_text}")
+    return parts
+
+
+def caption(configs: Mapping[str, Config], rows: pd.DataFrame, models: Sequence[str], baseline: str | None,
+            defaults: Config) -> str:
+    """The study page in one paragraph, for a LaTeX caption: each column's label and what it
+    changes against the baseline, the shared settings off the defaults, the budget."""
     shown = [m for m in models if m in configs]
     against = configs.get(baseline) if baseline else None
-    lines = ["# What this report compares", ""]
+    columns = [f"{m}: " + ("baseline" if m == baseline else
+                           _changes(configs[m], against, quote="") if against is not None else "(no baseline)")
+               for m in shown]
+    text = "Columns: " + "; ".join(columns) + "." if columns else ""
+    shared = shared_settings([configs[m] for m in shown], defaults)
+    if shared:
+        text += " All: " + ", ".join(s.replace("`", "") for s in shared) + "."
+    return (text + " " + "; ".join(budget([configs[m] for m in shown], rows, models)) + ".").strip()
+
+
+def study_markdown(configs: Mapping[str, Config], rows: pd.DataFrame, models: Sequence[str], baseline: str | None,
+                   defaults: Config, commit: str | None, title: str = "What this report compares",
+                   with_commit: bool = True) -> str:
+    """The report's study page (see the module's docstring); `configs`: one training config per
+    column (a run's own where it is on this machine). The same text heads table.md (`title`)."""
+    shown = [m for m in models if m in configs]
+    against = configs.get(baseline) if baseline else None
+    lines = [f"# {title}", ""]
     lines += [f"| column | fingerprint | seeds | trained otherwise than {baseline or 'the first column'} |",
               "|---|---|---|---|"]
     for m in shown:
@@ -71,20 +106,10 @@ def study_markdown(configs: Mapping[str, Config], rows: pd.DataFrame, models: Se
     lines += ["", "## Settings every column shares, where they are not the defaults", ""]
     lines += [f"- {s}" for s in shared] or ["- none: every shared setting is the default"]
     lines += ["", "## Budget", ""]
-    if cfgs:
-        its = [c.ppo.iterations for c in cfgs]
-        frames = [c.ppo.iterations * c.ppo.frames_per_iteration for c in cfgs]
-        lines.append(f"- training: {_span(its)} iterations, {_span(frames)} frames a seed")
-    per_run = rows.groupby(["model", "seed", "scenario"], sort=False)["simulation"].nunique()
-    scenarios = list(dict.fromkeys(rows["scenario"].astype(str)))
-    steps = sorted({c.eval.steps for c in cfgs})
-    steps_text = f" × {'/'.join(map(str, steps))} steps" if steps else ""
-    seeds = rows.groupby("model")["seed"].nunique()
-    lines.append(f"- seeds: {_span(seeds[[m for m in models if m in seeds.index]])} a column")
-    lines.append(f"- evaluation: {len(scenarios)} scenarios ({', '.join(scenarios)}) × "
-                 f"{_span(per_run)} simulations{steps_text}")
+    lines += [f"- {part}" for part in budget(cfgs, rows, models)]
     if differ := reward_differs(cfgs):
         lines += ["", f"The columns train on different rewards ({', '.join(differ)}): their training "
                   "rewards (training.md) are not comparable with each other."]
-    lines += ["", f"Report built at commit {commit or 'unknown (not a git checkout)'}."]
+    if with_commit:  # table.md leaves it out: the same rows give the same table at any commit
+        lines += ["", f"Report built at commit {commit or 'unknown (not a git checkout)'}."]
     return "\n".join(lines) + "\n"
