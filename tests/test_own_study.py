@@ -92,6 +92,10 @@ def test_the_issue_example_has_one_column_per_width(own, monkeypatch, capsys):
     rc = main(["sweep", "study=quick", "models=[M0]", "network.hidden=[8,8],[16,16]", *SMOKE,
                "eval.scenarios=[Roundabout]", store, f"runs_root={root}/widths"])
     assert rc == 0, capsys.readouterr().err
-    assert main(["report", "study=quick", store, "--no-figures", "--out", str(root / "widths-report")]) == 0
+    # the widths are a sub-study of their own: the sweep's hint reports exactly them
+    hint = [line for line in capsys.readouterr().out.splitlines() if line.startswith("next: ")]
+    words = shlex.split(hint[0].removeprefix("next: "))
+    assert "--models" in words and "study.baseline=M0_hidden-8-8" in words, hint
+    assert main([*words[1:], "--no-figures", "--out", str(root / "widths-report")]) == 0
     header = next(ln for ln in (root / "widths-report" / "table.md").read_text().splitlines() if ln.startswith("| Scenario"))
     assert header == "| Scenario | Metric | M0_hidden-8-8 | M0_hidden-16-16 |"

@@ -76,5 +76,5 @@ def test_the_seed_plan_takes_the_declared_baseline(tmp_path, conf, capsys):
 
 def test_a_sweep_refuses_a_baseline_that_is_not_a_variant_before_any_job(tmp_path, conf, capsys):
     line = one_line_exit_2(["sweep", "study=ab_m0", f"runs_root={tmp_path}/runs", "tracking.enabled=false"], capsys)
-    assert line == "sigmarl: error: study.baseline 'M0' is not one of the study's variants (A, B)"
+    assert line == "sigmarl: error: study.baseline 'M0' is not one of the study's variants (A, B) nor a label a sweep derived from one"
     assert not (tmp_path / "runs").exists()

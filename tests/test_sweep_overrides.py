@@ -72,8 +72,8 @@ def test_a_sweep_over_any_key_makes_one_variant_per_value(tmp_path):
     assert plan.jobs[0].variant == ["obs=full", "network.hidden=[64,64]"]
     assert len({j.fingerprint for j in plan.jobs}) == 2
     assert plan.jobs[1].run_dir == f"{tmp_path}/M0_hidden-128-128/seed0"
-    plan = plan_sweep(["ppo.lr=1e-4,2e-4", "models=[M0,M1,M2]", "tracking.enabled=false"], cores=64)
-    assert len(plan.jobs) == 6 and plan.labels[:2] == ["M0_lr-0.0001", "M0_lr-0.0002"]
+    plan = plan_sweep(["ppo.lr=1e-4,3e-4", "models=[M0,M1,M2]", "tracking.enabled=false"], cores=64)
+    assert len(plan.jobs) == 6 and plan.labels[:2] == ["M0_lr-0.0001", "M0_lr-0.0003"]
 
 
 @pytest.mark.parametrize(("user", "message"), [

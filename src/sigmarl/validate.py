@@ -154,9 +154,10 @@ def _check_study(cfg: Config) -> None:
         check_label(label)
         if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
             raise SigmarlError(f"study.variants.{label} must be a list of overrides, e.g. [obs=full]")
-    if study.variants and study.baseline not in study.variants:
+    # a sweep's sub-study may be compared with a label it swept from a variant (M0_max_speed-0.6)
+    if study.variants and not any(study.baseline == v or study.baseline.startswith(v + "_") for v in study.variants):
         raise SigmarlError(f"study.baseline {study.baseline!r} is not one of the study's variants "
-                           f"({', '.join(study.variants)})")
+                           f"({', '.join(study.variants)}) nor a label a sweep derived from one")
     for variant, base in study.baselines.items():
         for key, label in (("", variant), (".value", base)):
             if study.variants and label not in study.variants:

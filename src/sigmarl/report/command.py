@@ -51,6 +51,7 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     evaluation protocol.
     """
     experiment = cfg.tracking.experiment
+    check_baseline(cfg, options)
     tracker = open_tracker(cfg)  # checked before any work
     client = connect(cfg, write=False)  # the rows are read from MLflow whichever tracker logs
     folders, where = _study_folders(cfg)
@@ -60,6 +61,7 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
         missing = left_out(list(cfg.study.variants), set(), folders, where, declared=False)
         raise SigmarlError(f"{e}; " + "; ".join(map(str, missing)) if missing else str(e)) from e
     rows = only_scenarios(rows, options.scenarios, experiment)
+    _refuse_other_labels(rows, cfg, options)
     expected = variant_configs(options.overrides, dict(cfg.study.variants), rows["model"].astype(str))
     rows, wrong = check_columns(rows, expected, options.partial, lambda rid: records.evaluated_config(client, rid))
     rows = one_config_per_run(rows, list(expected))
@@ -84,6 +86,7 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     Logged as a report run to the tracker (experiment `cfg.tracking.experiment`).
     Default output: reports/<folder name> (several folders: reports/<study name>).
     """
+    check_baseline(cfg, options)
     roots = [Path(r) for r in (root if isinstance(root, list) else [root])]
     results = read_results(roots[0]) if len(roots) == 1 else read_many(roots)
     results.rows = only_scenarios(results.rows, options.scenarios, ", ".join(map(str, roots)))
@@ -101,6 +104,31 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
                        {"source": ",".join(str(r.resolve()) for r in roots)},
                        source=",".join(str(r) for r in roots))
     return report
+
+
+def check_baseline(cfg: Config, options: ReportOptions) -> None:
+    """--models keeps the study's baseline among the columns, or names another with
+    study.baseline=...; never the first listed in silence."""
+    models = options.models
+    if models is None or not cfg.study.variants or cfg.study.baseline in models:
+        return
+    if any(o.split("=", 1)[0].lstrip("+") == "study.baseline" for o in options.overrides):
+        raise SigmarlError(f"study.baseline={cfg.study.baseline} is not among --models {','.join(models)}: "
+                           "the baseline must be one of the columns")
+    raise SigmarlError(f"--models {','.join(models)} leaves out study {cfg.study.name!r}'s baseline "
+                       f"{cfg.study.baseline}: add it, or say which column is the baseline with "
+                       "study.baseline=<one of them>")
+
+
+def _refuse_other_labels(rows, cfg: Config, options: ReportOptions) -> None:
+    """A study's report shows its declared variants; a store holding only other labels (a
+    command-line sweep's own variants, e.g. M0_max_speed-0.6) is refused, naming them."""
+    present = list(dict.fromkeys(rows["model"].astype(str)))
+    declared = list(cfg.study.variants)
+    if options.models is None and declared and not set(present) & set(declared):
+        raise SigmarlError(f"no evaluation rows of study {cfg.study.name!r}'s variants ({', '.join(declared)}); "
+                           f"its store holds {', '.join(present)}: report those with --models "
+                           f"{','.join(present)} study.baseline=<one of them>")
 
 
 def only_scenarios(rows, scenarios: list[str] | None, where: str):
@@ -197,11 +225,11 @@ def _study_folders(cfg: Config) -> tuple[list[tuple[str, int, Path]], str]:
 
 
 def _study_labels(rows, declared: list[str]) -> list[str] | None:
-    """The labels in the rows that belong to the study (its variants, and those a sweep derived
-    from them, e.g. M0_hidden-64-64), in the study's order; None (all labels) if none does."""
-
+    """The study's variants in the rows, in the study's order (a command-line sweep's own
+    variants, e.g. M0_hidden-64-64, are a sub-study of their own: `--models`); None (all labels)
+    if none is there."""
     present = list(dict.fromkeys(rows["model"].astype(str)))
-    ours = [m for m in present if any(m == v or m.startswith(v + "_") for v in declared)]
+    ours = [m for m in present if m in declared]
     return label_order(ours, declared) if ours else None
 
 

@@ -39,8 +39,9 @@ def run_state(path: Path) -> tuple[str, bool]:
 
 
 def belongs(label: str, variants: Iterable[str]) -> bool:
-    """A label of the study: one of its variants, or one a sweep derived from it (M0_hidden-64-64)."""
-    return any(label == v or label.startswith(v + "_") for v in variants)
+    """A label of the study: one of its variants (one a command-line sweep derived from it,
+    M0_hidden-64-64, is its sweep's own)."""
+    return label in set(variants)
 
 
 def left_out(variants: Sequence[str], reported: set[tuple[str, int]],

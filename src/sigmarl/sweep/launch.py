@@ -23,7 +23,7 @@ from sigmarl.paths import CONFIG_PATH, conf_dir, user_conf_dirs
 from sigmarl.resources import sweep_folder_override, sweep_owner_override
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep.command import override_key
-from sigmarl.sweep.plan import SweepPlan, finished, plan_sweep
+from sigmarl.sweep.plan import SweepPlan, finished, plan_sweep, sub_study_baseline
 from sigmarl.sweep.task import run_job
 from sigmarl.tracking import open_tracker
 
@@ -180,6 +180,8 @@ def summarise(plan: SweepPlan) -> int:
     bad = 0
     width = max([len(j.label) for j in plan.jobs] + [6])
     print("\nsweep summary:")
+    for name, parent in plan.twins.items():
+        print(f"  {name} is {parent}'s training config: its runs are {parent}'s, not trained twice")
     for job in plan.jobs:
         run = Run(job.run_dir)
         run_dir = run.dir
@@ -211,7 +213,11 @@ def report_hint(plan: SweepPlan) -> str:
     if len(keep) < len(plan.fixed) and _where(compose_config(keep)) != _where(plan.config):
         keep = list(plan.fixed)
     dirs = [f"--config-dir {shlex.quote(_shown(d))}" for d in user_conf_dirs()]
-    return " ".join(["sigmarl", *dirs, "report", *map(shlex.quote, keep)])
+    # a swept key's variants are a sub-study: exactly its columns, compared with a stated baseline
+    own = ["--models", ",".join(plan.labels)] if plan.swept else []
+    if plan.swept:
+        keep = [o for o in keep if override_key(o) != "study.baseline"] + [f"study.baseline={sub_study_baseline(plan)}"]
+    return " ".join(["sigmarl", *dirs, "report", *own, *map(shlex.quote, keep)])
 
 
 def _where(cfg) -> tuple[str, ...]:

@@ -57,6 +57,8 @@ class SweepPlan:
     jobs: list[Job] = field(default_factory=list)
     config: Config | None = None  # the sweep's config without any variant (tracking, study)
     units: list[Unit] = field(default_factory=list)
+    swept: bool = False  # a key swept on the command line: the sweep's variants are a sub-study of their own
+    twins: dict[str, str] = field(default_factory=dict)  # swept label -> the variant it composes the same as
 
     @property
     def labels(self) -> list[str]:
@@ -71,9 +73,15 @@ def plan_sweep(user: Sequence[str], cores: int | None = None,
     base = compose_config(command.fixed)
     variants = _variants(command, base)
     seeds = _seeds(command, base.study)
-    plan = SweepPlan(base.study, command.fixed, command.hydra, config=base)
+    plan = SweepPlan(base.study, command.fixed, command.hydra, config=base, swept=bool(command.sweeps))
     size = seeds_per_job(base)
-    for name, own in _labelled(command, base.study, variants):
+    parents: dict[str, str] = {}  # variant -> its fingerprint without the swept values
+    for name, own, parent in _labelled(command, base.study, variants):
+        if name != parent and _same_as_parent(command, name, own, parent, variants[parent], parents):
+            plan.twins[name] = parent  # its runs are the variant's own: reused, never trained twice
+            name, own = parent, variants[parent]
+        if name in plan.labels:
+            continue
         jobs = _variant_jobs(name, [*command.fixed, *own, f"model={name}"], own,
                              (seeds_by_label or {}).get(name, seeds), size)
         plan.jobs += jobs
@@ -109,6 +117,25 @@ def _variants(command: Command, base: Config) -> dict[str, list[str]]:
     return {m: variants[m] for m in dict.fromkeys(command.models)}
 
 
+def _same_as_parent(command: Command, name: str, own: list[str], parent: str, variant: list[str],
+                    parents: dict[str, str]) -> bool:
+    """Whether a swept value composes to its variant's own training config (the swept key at its
+    value there, e.g. the default max_speed)."""
+    try:
+        if parent not in parents:
+            parents[parent] = compose_config([*command.fixed, *variant, f"model={parent}"]).fingerprint
+        return compose_config([*command.fixed, *own, f"model={name}"]).fingerprint == parents[parent]
+    except SigmarlError as e:
+        raise SigmarlError(f"variant {name}: {e}") from e
+
+
+def sub_study_baseline(plan: SweepPlan) -> str:
+    """The column a sweep's variants are compared with: the study's baseline where the sweep
+    holds it (a swept value at its default), else the first label swept from it, else the first."""
+    baseline, labels = plan.study.baseline, plan.labels
+    return baseline if baseline in labels else next((m for m in labels if m.startswith(baseline + "_")), labels[0])
+
+
 def _seeds(command: Command, study: StudyConfig) -> list[int]:
     seeds = _seed_list(command.seeds if command.seeds is not None else study.seeds)
     if not seeds:
@@ -129,8 +156,8 @@ def _seed_list(values: Sequence[object]) -> list[int]:
 
 
 def _labelled(command: Command, study: StudyConfig,
-              variants: dict[str, list[str]]) -> Iterator[tuple[str, list[str]]]:
-    """(label, own overrides) of each variant and each value of a swept key:
+              variants: dict[str, list[str]]) -> Iterator[tuple[str, list[str], str]]:
+    """(label, own overrides, the variant's label) of each variant and each value of a swept key:
     `<variant>_<key>-<value>`, hashed where it would be longer than a label may be."""
     fixed_keys = {override_key(o) for o in command.fixed}
     keys = [key for key, _ in command.sweeps]
@@ -143,7 +170,7 @@ def _labelled(command: Command, study: StudyConfig,
             name = "_".join([label, *(slug(key, v) for key, v in zip(keys, combo, strict=True))])
             name = check_label(name if len(name) <= 64 else
                                f"{label}_{hashlib.sha1(name.encode()).hexdigest()[:8]}")
-            yield name, [*variant, *(f"{key}={v}" for key, v in zip(keys, combo, strict=True))]
+            yield name, [*variant, *(f"{key}={v}" for key, v in zip(keys, combo, strict=True))], label
 
 
 def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: list[int],
