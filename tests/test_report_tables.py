@@ -237,3 +237,16 @@ def test_paper_numbers_only_beside_the_papers_maps(tmp_path):
     proc_block = tex.split("Proc-Roundabout}}")[1].split("\\bottomrule")[0]
     cells = [line.split(" & ")[1:] for line in proc_block.splitlines() if " & " in line]
     assert len(cells) == 6 and not any("(" in c for row in cells for c in row)
+
+
+def test_one_column_is_a_table_without_comparisons_and_says_so(tmp_path):
+    """One model: each metric over its mean across one model is 1, so the composite score
+    (always -1) and the probabilities against itself say nothing; they are left out, once."""
+    report = build_report(hand_rows(models=["M0"]), BuildOptions(out_dir=tmp_path, figures=False))
+    assert report.table.values.xs("CS", level="metric").isna().all().all()
+    assert report.table.values.loc[("CPM", "CD"), "M0"] == pytest.approx(CD[0])
+    said = [n for n in report.notes if "nothing to compare" in n]
+    assert said == ["All scenarios: one model: nothing to compare, so no composite score, "
+                    "probability of improvement or verdict."]
+    assert not (tmp_path / "statistics.md").exists() and not (tmp_path / "verdicts.md").exists()
+    assert (tmp_path / "table.md").exists()

@@ -348,9 +348,10 @@ def _add_report(sub) -> argparse.ArgumentParser:
     rp.add_argument("--out", help="output folder (default: reports/<experiment>, or reports/<FOLDER name>)")
     rp.add_argument("--no-figures", action="store_true", help="tables only")
     rp.add_argument("--partial", action="store_true",
-                    help="report what is there when a run failed, a variant of the study has no rows, or a "
-                         "run under a variant's label was trained with another config (each named in the "
-                         "notes); without it, such a report is refused")
+                    help="report what is there when a run failed, a variant has run folders but no "
+                         "evaluation rows (unfinished or not evaluated), or a run under a variant's label "
+                         "was trained with another config (each named in the notes); without it, such a "
+                         "report is refused. A variant never run (no folder, no rows) is a note either way")
     rp.add_argument("--animations", type=int, nargs="?", const=200, default=0, metavar="STEPS",
                     help="also one GIF per scenario of the study's baseline driving (default 200 steps)")
     rp.add_argument("--plan", action="store_true",

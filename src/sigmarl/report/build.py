@@ -210,7 +210,10 @@ def table_section(d: Draft) -> None:
 
 def statistics_section(d: Draft) -> None:
     """Probability of improvement and aggregate scores over scenarios: statistics.md,
-    improvement.csv, improvement_overall.csv and aggregate_scores.csv (`sigmarl.report.scores`)."""
+    improvement.csv, improvement_overall.csv and aggregate_scores.csv (`sigmarl.report.scores`);
+    none for a one-column report, which has nothing to compare."""
+    if len(d.models) < 2:
+        return
     d.improvement = improvement(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
     overall = improvement_overall(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
     d.aggregates = aggregate_scores(d.cells, d.composite, d.models)

@@ -52,6 +52,9 @@ def composite_of(means: Mapping[str, Mapping[str, float] | pd.Series]) -> Compos
         notes.append(f"no complete metrics for {left_out}: left out of the composite score")
     if complete.empty:
         return CompositeScore(nan_scores, "composite score undefined: no model has all metrics")
+    if len(complete) == 1:  # each metric over its mean across one model is 1: the score says nothing
+        return CompositeScore(nan_scores, "; ".join(["one model: nothing to compare, so no composite score, probability of improvement or verdict",
+                                                    *notes]))
     mean = complete.mean()
     for name in COMPOSITE:
         if not mean[name] > 0:
@@ -62,8 +65,6 @@ def composite_of(means: Mapping[str, Mapping[str, float] | pd.Series]) -> Compos
         term = complete[name] / mean[name]
         scores = (-term if sign < 0 else term) if scores is None else \
             (scores - term if sign < 0 else scores + term)
-    if len(complete) == 1:
-        notes.append("with a single model the composite score is always -1")
     return CompositeScore(scores.reindex(frame.index).rename("CS"), "; ".join(notes) or None)
 
 

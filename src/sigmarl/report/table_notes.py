@@ -32,13 +32,18 @@ def table_notes(
     ]
     if trim:
         notes.append("Collision rates without each evaluation's best and worst simulation.")
-    for scenario, g in composite.groupby("scenario", sort=False):
+    by_note: dict[str, list[str]] = {}  # a note once, naming its scenarios unless it holds for all
+    groups = list(composite.groupby("scenario", sort=False))
+    for scenario, g in groups:
         absent = [m for m in models if m not in set(g["model"])]
         if absent:  # the scores then compare fewer models than the table's columns
-            notes.append(f"{scenario}: no evaluation rows for {', '.join(absent)}.")
+            by_note.setdefault(f"no evaluation rows for {', '.join(absent)}", []).append(scenario)
         for note in dict.fromkeys(g["note"]):
             if note:
-                notes.append(f"{scenario}: {note}.")
+                by_note.setdefault(note, []).append(scenario)
+    for note, where in by_note.items():
+        everywhere = len(where) == len(groups) > 1
+        notes.append(f"{'All scenarios' if everywhere else ', '.join(where)}: {note}.")
     if compare_paper:
         notes.append("In parentheses: the paper's Table I (CD converted to real cm).")
         others = [s for s in dict.fromkeys(summary["scenario"]) if s not in paper_scenarios]
