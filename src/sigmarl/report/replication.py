@@ -205,7 +205,8 @@ def summary_line(table: pd.DataFrame) -> str:
     if not parts:
         return "No claim of the paper to test."
     n = table.loc[table["claim"] == "difference", ["n_model", "n_baseline"]]
-    seeds = f" ({int(n.min().min())}–{int(n.max().max())} seeds a model)" if len(n) else ""
+    low, high = (int(n.min().min()), int(n.max().max())) if len(n) else (0, 0)
+    seeds = (f" ({low} seeds a model)" if low == high else f" ({low}–{high} seeds a model)") if len(n) else ""
     return f"Summary{seeds}. " + " ".join(parts)
 
 
