@@ -97,6 +97,20 @@ def store_template_cache(tmp_path_factory) -> None:
     os.environ["SIGMARL_CACHE"] = str(tmp_path_factory.mktemp("sigmarl-cache"))
 
 
+@pytest.fixture(autouse=True)
+def own_config_folders_end_with_the_test():
+    """`sigmarl --config-dir DIR` adds DIR to $SIGMARL_CONFIG_PATH for the rest of the process
+    (so a sweep's jobs inherit it); in the suite, it must not outlive the test that typed it."""
+    from sigmarl.paths import CONFIG_PATH
+
+    before = os.environ.get(CONFIG_PATH)
+    yield
+    if before is None:
+        os.environ.pop(CONFIG_PATH, None)
+    else:
+        os.environ[CONFIG_PATH] = before
+
+
 @pytest.fixture(scope="session")
 def straight_road() -> RoadMap:
     return straight_road_map(0.075)
