@@ -73,6 +73,30 @@ def test_a_second_process_is_refused_in_one_line_and_the_lock_dies_with_its_hold
     assert not folder.exists()  # taking the lock creates nothing inside the run folder
 
 
+def test_every_spelling_of_one_folder_is_one_writer(tmp_path, monkeypatch, capsys):
+    """A symlink to the folder, a `..` path through it and a relative path take the folder's
+    one lock: train and evaluate are refused while another process holds it."""
+    from sigmarl.cli import main
+
+    real = tmp_path / "runs" / "real"
+    real.mkdir(parents=True)
+    (tmp_path / "link").symlink_to(real)
+    monkeypatch.chdir(tmp_path)
+    holder = hold_in_another_process(real)
+    try:
+        for spelling in (tmp_path / "link", real / ".." / "real", Path("runs/real")):
+            with pytest.raises(SigmarlError, match="in use by another sigmarl process"):
+                with Run(spelling).lock():
+                    pass
+        rc = main(["train", "ppo=smoke", "tracking.enabled=false", "run_dir=link", "resume=true"])
+        assert rc == 2 and "is in use by another sigmarl process" in capsys.readouterr().err
+    finally:
+        holder.kill()
+        holder.wait()
+    assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == [".real.lock", "real"]
+    assert not list(real.iterdir())
+
+
 def test_train_refuses_a_folder_another_process_writes(tmp_path, capsys):
     from sigmarl.cli import main
 

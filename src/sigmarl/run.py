@@ -6,8 +6,10 @@ knows its files, its states, how a file in it is written, and who may write it.
   target, flushes it to disk, and renames it over the target (a kill leaves the old file or
   the new one, never half of one).
 - One live process writes a run folder at a time: `Run.lock()` takes an `flock` on
-  `.seed<k>.lock` beside the folder (outside it, so that taking it creates nothing inside), which the kernel releases when its holder dies, however it dies (a kill -9
-  included), so a lock never outlives its process and a re-run needs no clean-up.
+  `.seed<k>.lock` beside the folder (outside it, so that taking it creates nothing inside),
+  named from the resolved folder (a symlink or a `..` spelling of it takes the same lock),
+  which the kernel releases when its holder dies, however it dies (a kill -9 included), so a
+  lock never outlives its process and a re-run needs no clean-up.
 """
 
 from __future__ import annotations
@@ -100,7 +102,10 @@ class Run:
 
     @property
     def lock_file(self) -> Path:
-        return self.dir.parent / f".{self.dir.name}.lock"
+        # keyed on the folder itself, not its spelling: a symlink, `..` or a relative path to
+        # one folder is one writer
+        folder = self.dir.resolve()
+        return folder.parent / f".{folder.name}.lock"
 
     def path(self, name: str) -> Path:
         return self.dir / name
@@ -168,7 +173,8 @@ class Run:
         """Hold the folder for this process, or refuse in one line if another live process
         holds it. Re-entrant within a process."""
         self.dir.parent.mkdir(parents=True, exist_ok=True)
-        key = str(self.lock_file.resolve())
+        self.lock_file.parent.mkdir(parents=True, exist_ok=True)
+        key = str(self.lock_file)
         if key in _HELD:
             _HELD[key][1] += 1
             try:
@@ -198,7 +204,7 @@ class Run:
 
     @property
     def locked_here(self) -> bool:
-        return str(self.lock_file.resolve()) in _HELD
+        return str(self.lock_file) in _HELD
 
 
 def _read_holder(fd: int) -> str:
