@@ -31,3 +31,30 @@ def test_g9_evaluate_still_takes_what_it_honours(tmp_path, capsys):
     line = one_line_exit_2(["evaluate", str(PAPER_RUN), "eval.n_sims=1", "threads=1", "device=cpu",
                             "tracking.enabled=false", "study=quick", "--scenario", "Nowhere"], capsys)
     assert "cannot honour" not in line and "Nowhere" in line
+
+
+def test_g8_a_plan_over_no_metric_is_refused(capsys):
+    line = one_line_exit_2(["report", "--plan", "--from", str(PAPER_RUN.parents[1]), "study.metrics=[]"], capsys)
+    assert "study.metrics is empty" in line
+
+
+@pytest.mark.parametrize("name", [".hidden", "-rf", "a b", "x" * 65])
+def test_g10_an_experiment_name_keeps_the_label_rule(name, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    line = one_line_exit_2(["train", "ppo=smoke", f"tracking.experiment='{name}'"], capsys)
+    assert "tracking.experiment=" in line and "starting with a letter or digit" in line
+    assert list(tmp_path.iterdir()) == []  # no runs/.hidden, no runs/-rf
+
+
+def test_g10_the_studies_own_experiments_keep_it():
+    from sigmarl.compose import compose_config
+    from sigmarl.paths import config_files
+
+    for name in config_files("study"):
+        compose_config([f"study={name}"])  # validates tracking.experiment among the rest
+
+
+def test_g11_a_plan_error_names_its_folders_as_typed(capsys):
+    folder = str(PAPER_RUN.parents[1])
+    line = one_line_exit_2(["report", "--plan", "--from", folder, "--models", "M4"], capsys)
+    assert f"from {folder} are M4" in line and "PosixPath" not in line

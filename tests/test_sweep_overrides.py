@@ -58,10 +58,11 @@ def test_presets_on_the_command_line_are_labelled_from_their_flags():
     assert [j.key for j in plan.jobs] == ["M0/seed3", "M0/seed4", "M4/seed3", "M4/seed4"]
 
 
-def test_quoted_strings_keep_their_commas():
-    plan = plan_sweep(["tracking.enabled=false", "tracking.experiment='a,b'", "models=[M0]"], cores=4)
-    assert "tracking.experiment='a,b'" in plan.fixed and launcher(plan, 4) == (1, 4)
-    assert plan.config.tracking.experiment == "a,b"
+def test_quoted_strings_keep_their_commas(tmp_path):
+    root = f"{tmp_path}/a,b"
+    plan = plan_sweep(["tracking.enabled=false", f"runs_root='{root}'", "models=[M0]"], cores=4)
+    assert f"runs_root='{root}'" in plan.fixed and launcher(plan, 4) == (1, 4)
+    assert str(plan.config.runs_root) == root
 
 
 def test_a_sweep_over_any_key_makes_one_variant_per_value(tmp_path):

@@ -63,8 +63,15 @@ def differences(a: Config, b: Config, limit: int = 4) -> str:
     return text + (f" and {len(keys) - limit} more" if len(keys) > limit else "")
 
 
+LABEL_RULE = "up to 64 letters, digits, '.', '_' or '-', starting with a letter or digit"
+
+
+def is_label(name: object) -> bool:
+    """Whether `name` may name a folder (of runs or of a run) and a table column."""
+    return isinstance(name, str) and _LABEL.fullmatch(name) is not None
+
+
 def check_label(label: str) -> str:
-    if not isinstance(label, str) or not _LABEL.fullmatch(label):
-        raise SigmarlError(f"bad run label {label!r}: use up to 64 letters, digits, '.', '_' or '-', "
-                           "starting with a letter or digit (it names a folder and a table column)")
+    if not is_label(label):
+        raise SigmarlError(f"bad run label {label!r}: use {LABEL_RULE} (it names a folder and a table column)")
     return label

@@ -18,7 +18,7 @@ from typing import Literal, get_args
 
 from sigmarl.config import Config, EvalConfig, MapConfig
 from sigmarl.errors import SigmarlError
-from sigmarl.identity import check_label
+from sigmarl.identity import LABEL_RULE, check_label, is_label
 from sigmarl.metrics import metric
 from sigmarl.reward_config import check_reward
 from sigmarl.scenarios import check_fits, scenario_names
@@ -35,9 +35,6 @@ DeviceType = Literal["cpu", "cuda"]
 
 # numpy's legacy generator (np.random.seed) takes seeds in 0..2**32-1, torch any up to 2**64-1
 SEED_MAX = 2**32 - 1
-# An experiment names a folder (runs/<experiment>) and a row in MLflow's store: a path
-# component holds at most 255 bytes, MLflow's SQL schema 256 characters.
-EXPERIMENT_MAX_BYTES = 255
 # Reference points are slots of the environment's center-line window, which reaches 6
 # resampled points ahead of the vehicle's own (env.ego.LINE_WINDOW).
 MAX_REF_REACH = 6
@@ -177,6 +174,9 @@ def _check_study(cfg: Config) -> None:
                                f"four different variants, got {', '.join(groups)}")
     if any(s < 0 or s > SEED_MAX for s in study.seeds):
         raise SigmarlError(f"study.seeds must be in 0..{SEED_MAX}, got {study.seeds}")
+    if not study.metrics:
+        raise SigmarlError("study.metrics is empty: a study's verdicts, plans and composite score need at least "
+                           "one metric, e.g. study.metrics=[CR_total]")
     for name in [*study.metrics, *study.margins]:
         metric(name)  # an unknown metric name ends here
     for name, margin in study.margins.items():
@@ -225,14 +225,14 @@ def _check_ppo(cfg: Config) -> None:
 
 
 def _check_experiment(name: str) -> None:
+    """An experiment names a folder (runs/<experiment>) and a row in MLflow's store: the rule of
+    run labels, so that no name is hidden (`.x`), read as an option (`-rf`) or leaves runs/."""
     if not name.strip():
         raise SigmarlError("tracking.experiment is empty")
-    if name in (".", "..") or any(c in name for c in "/\\\0"):
-        raise SigmarlError(f"tracking.experiment={name!r} names a folder inside runs/: no '/', '\\', "
-                           "'..' or NUL; choose a plain name such as my-study")
-    if len(name.encode()) > EXPERIMENT_MAX_BYTES:
-        raise SigmarlError(f"tracking.experiment is {len(name.encode())} bytes long ({name[:40]!r}...); "
-                           f"at most {EXPERIMENT_MAX_BYTES} (it names the folder runs/<experiment>)")
+    if not is_label(name):
+        shown = repr(name if len(name) <= 40 else name[:40] + "...")
+        raise SigmarlError(f"tracking.experiment={shown} names the folder runs/<experiment>: use {LABEL_RULE}, "
+                           "e.g. my-study")
 
 
 def _short(n: int) -> str:

@@ -152,7 +152,7 @@ def plan_from_folder(root: Path | list[Path], models: list[str] | None = None, b
     baseline = baseline or ("M0" if "M0" in models else models[0])
     if baseline not in models or len(models) < 2:
         raise SigmarlError(f"a plan compares other models with the baseline {baseline}; the models chosen "
-                           f"from {root} are {', '.join(models)}")
+                           f"from {', '.join(map(str, roots))} are {', '.join(models)}")
     design = replace(design_of(study, models), baseline=baseline) if study is not None \
         else Design(variants=models, baseline=baseline)
     return plan_text(plan_table(rows, design), design)
