@@ -47,6 +47,9 @@ class Flaky(Good):
 class Refuses(Good):
     def __init__(self, cfg): raise PermissionError("no token for the tracker's server")
 
+class OwnInit(Good):
+    def __init__(self, cfg): self.url = "https://tracker.example"  # keeps no cfg: its own business
+
 class NoRun(Good):
     def training_run(self, run_id=None, reopen=True): raise ValueError("project not found")
 '''
@@ -79,6 +82,12 @@ def test_f14_a_tracker_that_fails_at_start_is_one_line(backend, says, trackers, 
     assert rc == 2 and len(err) == 1 and err[0].startswith("sigmarl: error: tracking.backend"), err
     assert says in err[0]
     assert not list(trackers.rglob("checkpoint.pt"))  # nothing trained
+
+
+def test_a_tracker_whose_constructor_keeps_no_config_is_guarded_all_the_same(trackers):
+    cfg = compose_config(["tracking.backend=own_tracker:OwnInit"])
+    tracker = open_tracker(cfg)
+    assert isinstance(tracker, GuardedTracker) and tracker.cfg is cfg and tracker.training_run().run_id == "r1"
 
 
 def test_f15_a_tracker_that_fails_mid_run_costs_one_warning(trackers, capsys):

@@ -11,16 +11,25 @@ for the next fault (`SIGMARL_FUZZ=explore pytest tests/test_fuzz_readers.py`).
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
+import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sigmarl.errors import SigmarlError
-from sigmarl.readers import check_config_dir, read_json, read_run_config
+from sigmarl.readers import (
+    MAX_ITERATION,
+    check_config_dir,
+    read_json,
+    read_run_config,
+    read_training_curve,
+)
 from sigmarl.training import checkpoint, metrics_file
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,6 +98,63 @@ def test_a_damaged_metrics_file_resumes_whole_or_is_refused(tmp_path, data, upto
         _one_line_naming(e, path)
     else:
         assert [it for it, _ in rows] == list(range(1, upto + 1))
+
+
+@FUZZ
+@given(data=damaged(METRICS))
+def test_a_damaged_metrics_file_as_a_report_reads_it_is_whole_or_refused(tmp_path, data) -> None:
+    """What a report averages: iterations 1..n once each, in order, every value finite, or one line."""
+    path = _write(tmp_path, "metrics.csv", data)
+    try:
+        curve = read_training_curve(path)
+    except SigmarlError as e:
+        _one_line_naming(e, path)
+    else:
+        assert [it for it, _ in curve] == list(range(1, len(curve) + 1)) and len(curve) <= MAX_ITERATION
+        assert all(math.isfinite(v) for _, values in curve for v in values.values())
+
+
+def _checksummed(tmp: Path) -> bytes:
+    """The committed resume point saved as training saves it today (with its checksum)."""
+    state = torch.load(RUN / "checkpoint.pt", weights_only=True)
+    checkpoint.save_atomic(state, tmp / "checkpoint.pt")
+    return (tmp / "checkpoint.pt").read_bytes()
+
+
+def _flat(x, prefix=""):
+    if isinstance(x, dict):
+        for k, v in x.items():
+            yield from _flat(v, f"{prefix}/{k}")
+    elif isinstance(x, (list, tuple)):
+        for i, v in enumerate(x):
+            yield from _flat(v, f"{prefix}/{i}")
+    else:
+        yield prefix, x
+
+
+def _equal(a, b) -> bool:
+    return torch.equal(a, b) if isinstance(a, torch.Tensor) and isinstance(b, torch.Tensor) else \
+        (a == b or (isinstance(a, float) and math.isnan(a) and math.isnan(b)))
+
+
+with tempfile.TemporaryDirectory() as _tmp:
+    CHECKSUMMED = _checksummed(Path(_tmp))
+    ORIGINAL = dict(_flat(checkpoint.load(Path(_tmp) / "checkpoint.pt", resume=True)))  # the undamaged file
+
+
+@FUZZ
+@given(data=damaged(CHECKSUMMED))
+def test_a_checksummed_resume_point_loads_unchanged_or_is_refused(tmp_path, data) -> None:
+    """The checksum's promise: whatever damage a resume point takes, what loads is exactly what
+    was saved (every tensor, the optimiser's state, the random generators), or one line."""
+    path = _write(tmp_path, "checkpoint.pt", data)
+    try:
+        state = checkpoint.load(path, resume=True)
+    except SigmarlError as e:
+        _one_line_naming(e, path)
+    else:
+        loaded = dict(_flat(state))
+        assert loaded.keys() == ORIGINAL.keys() and all(_equal(loaded[k], ORIGINAL[k]) for k in ORIGINAL)
 
 
 @FUZZ

@@ -85,8 +85,8 @@ class GuardedTrainingRun(TrainingRun):
 class GuardedTracker(Tracker):
     """A user's tracker behind the guard above."""
 
-    def __init__(self, inner: Tracker, backend: str) -> None:
-        super().__init__(inner.cfg)
+    def __init__(self, inner: Tracker, backend: str, cfg) -> None:
+        super().__init__(cfg)  # the command's own: a user's __init__ need not keep it
         self.inner, self.backend, self.warner = inner, backend, _Warner(backend)
 
     def training_run(self, run_id: str | None = None, reopen: bool = True) -> TrainingRun:

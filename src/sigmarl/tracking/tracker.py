@@ -185,4 +185,4 @@ def open_tracker(cfg: Config) -> Tracker:
         return cls(cfg)
     from sigmarl.tracking.guard import GuardedTracker, at_start
 
-    return GuardedTracker(at_start(backend, "its constructor", lambda: cls(cfg)), backend)
+    return GuardedTracker(at_start(backend, "its constructor", lambda: cls(cfg)), backend, cfg)
