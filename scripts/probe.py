@@ -1,189 +1,195 @@
-"""A reliability round in one command: named fault probes against the `sigmarl` CLI, each in its
-own temporary folder at a smoke budget, with PASS or FAIL per probe (exit code 1 if any fails).
+"""A reliability round in one command: one named probe per fault of the reliability rounds
+(F1-F18, G1-G11) and per promise of the run folder (kill -9 resume, blocks, sweeps, `evaluate`'s
+lock, `report`), each run against the `sigmarl` CLI in its own temporary folder at a smoke
+budget, PASS or FAIL per probe (exit code 1 if any fails).
 
-    python scripts/probe.py            # every probe (about a minute on 2 cores)
-    python scripts/probe.py F3 kill9   # the probes whose names contain one of the words
+    python scripts/probe.py               # the whole round (about 4 minutes on 2 cores)
+    python scripts/probe.py F13 G1 kill9  # the probes named so: an exact name, or its fault (F6: both F6 probes)
+    python scripts/probe.py --list F6     # the names a selection runs, without running them
 
-Bad input must end in one line `sigmarl: error: ...`, exit code 2, and leave nothing behind. A
-run folder killed with SIGKILL mid-training must resume to one metrics row per iteration; the
-same folder with a damaged file must be refused in one line naming that file, or repaired where
-the checkpoint holds what was lost (config.yaml). A new round of
-probes starts from this list: add a `Probe`.
+Each probe checks the property its name promises, not a stand-in: F13 that a NaN optimiser state
+never reaches best.pt, `kill9-resume` that the resumed weights equal an uninterrupted run's.
+Bad input must end in one line `sigmarl: error: ...`, exit code 2, and leave nothing behind. A new
+round of probes starts by adding a `Probe` to one of the lists (`probe_input`, `probe_runs`,
+`probe_sweeps`).
 """
 
 from __future__ import annotations
 
 import os
-import shutil
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+ROOT = Path(__file__).resolve().parents[1]
 SIGMARL = [sys.executable, "-m", "sigmarl"]
 SMOKE = ["ppo=smoke", "tracking.enabled=false", "threads=1"]
-KILLED_ITERATIONS = 20  # long enough that the kill lands mid-training (it lands at about the 4th)
+# a study small enough for seconds: one iteration's evaluation of 5 steps on one scenario
+TINY_EVAL = ["eval.n_sims=1", "eval.steps=5", "eval.scenarios=[Roundabout]"]
+
+
+# A user's tracker (tracking.backend=module:Class) that fails: when it is made (Refuses), or on
+# every metrics call once the work runs (Flaky); a probe writes it into its folder.
+TRACKERS = '''
+from sigmarl.tracking import Tracker, TrainingRun
+
+class Run(TrainingRun):
+    run_id = "r1"
+    def set_tags(self, tags): pass
+    def log_params(self, params): pass
+    def log_metrics(self, rows): raise ConnectionError("the tracker's server went away")
+    def sync_metrics(self, rows): self.log_metrics(rows)
+    def log_artifact(self, path): pass
+    def log_missing_artifacts(self, paths): pass
+    def status(self): return "RUNNING"
+    def finish(self, status="FINISHED"): pass
+
+class Flaky(Tracker):
+    def training_run(self, run_id=None, reopen=True): return Run()
+    def discard_training_run(self, run_id): pass
+    def finished_evaluation(self, train_run_id, eval_key): return None
+    def log_evaluation(self, rows, tags, params): return None
+    def log_report(self, composite, paths, tags, source=None): return None
+
+class Refuses(Flaky):
+    def __init__(self, cfg): raise PermissionError("no token for the tracker's server")
+'''
 
 
 @dataclass
 class Probe:
-    name: str
+    name: str  # "<fault>-<what>" (the fault, e.g. F13, selects every probe of it) or a plain name
     fault: str  # what is done, in words
-    argv: list[str]
-    refused: str | None = None  # the refusal's line must name this; None: the command must succeed
-    setup: Callable[[Path], None] | None = None  # prepares the probe's folder
-    check: Callable[[Path], str | None] | None = None  # after the command: None, or what is wrong
-    new_files: bool = field(default=False)  # whether the command may create files
+    check: Callable[[Path], str | None]  # run in the probe's own folder: None, or what is wrong
+
+    @property
+    def fault_id(self) -> str:
+        return self.name.split("-")[0]
 
 
-def run(argv: list[str], cwd: Path, timeout: int = 300) -> subprocess.CompletedProcess:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "SIGMARL_CONFIG_PATH": ""}
-    return subprocess.run([*SIGMARL, *argv], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env)
+def env(**extra: str) -> dict[str, str]:
+    return {**os.environ, "OMP_NUM_THREADS": "1", "SIGMARL_CONFIG_PATH": "", **extra}
 
 
-def killed_run(folder: Path) -> Path:
-    """A run folder whose training was killed with SIGKILL after its third checkpoint."""
-    argv = [*SIGMARL, "train", *SMOKE, f"ppo.iterations={KILLED_ITERATIONS}", "ppo.checkpoint_every=1",
-            "runs_root=runs"]
-    proc = subprocess.Popen(argv, cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            start_new_session=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
-    run_dir = folder / "runs" / "M0" / "seed0"
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None:
-        metrics = run_dir / "metrics.csv"
-        if (run_dir / "checkpoint.pt").is_file() and metrics.is_file() and metrics.read_text().count("\n") >= 4:
-            break
+def sigmarl(argv: list[str], cwd: Path, timeout: int = 300, **extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*SIGMARL, *argv], cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                          env=env(**extra))
+
+
+def start(argv: list[str], cwd: Path, **extra: str) -> subprocess.Popen:
+    return subprocess.Popen([*SIGMARL, *argv], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, env=env(**extra))
+
+
+def wait_for(condition: Callable[[], bool], seconds: float = 300) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if condition():
+            return True
         time.sleep(0.2)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
-    if (run_dir / "final.pt").exists():
-        raise SystemExit("probe: the training finished before the kill; raise KILLED_ITERATIONS")
-    return run_dir
+    return False
 
 
-RESUME = ["train", *SMOKE, f"ppo.iterations={KILLED_ITERATIONS}", "ppo.checkpoint_every=1", "runs_root=runs",
-          "resume=true"]
+def files(folder: Path) -> dict[Path, bytes]:
+    """Every file below `folder` with its bytes (to tell that a refusal changed nothing), but for
+    the run folders' lock files beside them, which any command that checks a folder takes."""
+    return {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*")
+            if p.is_file() and not (p.name.startswith(".") and p.name.endswith(".lock"))}
 
 
-def _copy_killed(base: Path) -> Callable[[Path], None]:
-    def setup(folder: Path) -> None:
-        shutil.copytree(base, folder / "runs", dirs_exist_ok=True)
-    return setup
-
-
-def _then(first: Callable[[Path], None], damage: Callable[[Path], None]) -> Callable[[Path], None]:
-    def setup(folder: Path) -> None:
-        first(folder)
-        damage(folder / "runs" / "M0" / "seed0")
-    return setup
-
-
-def _whole_metrics(folder: Path) -> str | None:
-    lines = (folder / "runs" / "M0" / "seed0" / "metrics.csv").read_text().splitlines()[1:]
-    found = [int(line.split(",")[0]) for line in lines]
-    want = list(range(1, KILLED_ITERATIONS + 1))
-    return None if found == want else f"metrics.csv holds iterations {found[:5]}... not 1..{KILLED_ITERATIONS}"
-
-
-def _config_whole(folder: Path) -> str | None:
-    """The resume wrote the record again, so `report` and `evaluate` can read the folder."""
-    from sigmarl.errors import SigmarlError
-    from sigmarl.readers import read_run_config
-
-    try:
-        read_run_config(folder / "runs" / "M0" / "seed0" / "config.yaml")
-    except SigmarlError as e:
-        return f"config.yaml left damaged: {e}"
-    return _whole_metrics(folder)
-
-
-def _bad_yaml(folder: Path) -> None:
-    (folder / "conf" / "study").mkdir(parents=True)
-    (folder / "conf" / "study" / "mine.yaml").write_text("variants:\n  A: [obs=paper\n")
-
-
-def _drop_row(run_dir: Path) -> None:
-    lines = (run_dir / "metrics.csv").read_text().splitlines(keepends=True)
-    (run_dir / "metrics.csv").write_text("".join(lines[:2] + lines[3:]))
-
-
-def _cut_half(run_dir: Path) -> None:
-    data = (run_dir / "checkpoint.pt").read_bytes()
-    (run_dir / "checkpoint.pt").write_bytes(data[: len(data) // 2])
-
-
-def probes(killed: Path) -> list[Probe]:
-    copy = _copy_killed(killed)
-    return [
-        Probe("unknown-key", "a misspelt key", ["train", *SMOKE, "ppo.epoch=3"], refused="ppo.epochs"),
-        Probe("F1-experiment", "an experiment name that leaves the runs folder",
-              ["train", *SMOKE, "tracking.experiment=../../etc"], refused="tracking.experiment"),
-        Probe("F2-seeds", "a seed that is not a whole number", ["sweep", "study=quick", "models=[M0]", "seeds=[abc]"],
-              refused="seed"),
-        Probe("F3-nan", "NaN as a learning rate", ["train", *SMOKE, "ppo.lr=nan"], refused="ppo.lr"),
-        Probe("F4-yaml", "a syntax error in a --config-dir", ["--config-dir", "conf", "train", *SMOKE],
-              refused="mine.yaml", setup=_bad_yaml),
-        Probe("agents", "more agents than the map holds", ["train", *SMOKE, "env.n_agents=10000"],
-              refused="n_agents"),
-        Probe("checkpoint-missing", "evaluating a checkpoint that is not there",
-              ["evaluate", "nowhere/best.pt", "tracking.enabled=false"], refused="nowhere/best.pt"),
-        Probe("kill9-resume", "SIGKILL mid-training, then the same command with resume=true", RESUME,
-              setup=copy, check=_whole_metrics, new_files=True),
-        Probe("F11-config", "a binary config.yaml in a killed run folder (the checkpoint holds its config)",
-              RESUME, setup=_then(copy, lambda d: (d / "config.yaml").write_bytes(bytes(range(256)))),
-              check=_config_whole, new_files=True),
-        Probe("F12-metrics", "a row missing in the middle of metrics.csv", RESUME, refused="metrics.csv",
-              setup=_then(copy, _drop_row)),
-        Probe("F13-checkpoint", "checkpoint.pt cut in half", RESUME, refused="checkpoint.pt",
-              setup=_then(copy, _cut_half)),
-    ]
-
-
-def _files(folder: Path) -> set[Path]:
-    return {p.relative_to(folder) for p in folder.rglob("*")}
-
-
-def verdict(probe: Probe, folder: Path) -> tuple[bool, str]:
-    before = _files(folder)
-    done = run(probe.argv, folder)
+def last_line(done: subprocess.CompletedProcess) -> str:
     lines = [line for line in done.stderr.splitlines() if line.strip()]
-    if probe.refused is None:
-        if done.returncode != 0:
-            return False, f"rc {done.returncode}: {(lines or ['(no output)'])[-1]}"
-        wrong = probe.check(folder) if probe.check else None
-        return wrong is None, wrong or "succeeded"
+    return (lines or ["(no output)"])[-1][:200]
+
+
+def one_line(done: subprocess.CompletedProcess, says: str) -> str | None:
+    """None if `done` is a refusal in one line naming `says`, with exit code 2."""
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
     if done.returncode != 2:
-        return False, f"rc {done.returncode}, not 2: {(lines or ['(no output)'])[-1][:160]}"
+        return f"rc {done.returncode}, not 2: {last_line(done)}"
     if len(lines) != 1 or not lines[0].startswith("sigmarl: error:"):
-        return False, f"{len(lines)} lines on stderr, not one `sigmarl: error:` line"
-    if probe.refused not in lines[0]:
-        return False, f"the line does not name {probe.refused!r}: {lines[0][:160]}"
-    if not probe.new_files and (new := _files(folder) - before):
-        return False, f"left {sorted(map(str, new))[:3]} behind"
-    return True, lines[0][:160]
+        return f"{len(lines)} lines on stderr, not one `sigmarl: error:` line: {last_line(done)}"
+    if says not in lines[0]:
+        return f"the line does not name {says!r}: {lines[0][:200]}"
+    return None
 
 
-def main(words: list[str]) -> int:
+def refusal(argv: list[str], says: str, setup: Callable[[Path], None] | None = None) -> Callable[[Path], str | None]:
+    """A probe: after `setup`, `sigmarl argv` is refused in one line naming `says`, and the folder
+    is left exactly as it was (no new file, no changed one)."""
+    def check(folder: Path) -> str | None:
+        if setup:
+            setup(folder)
+        before = files(folder)
+        wrong = one_line(sigmarl(argv, folder), says)
+        if wrong:
+            return wrong
+        after = files(folder)
+        if after != before:
+            changed = sorted(str(p) for p in set(after) ^ set(before) | {p for p in after if after.get(p) != before.get(p)})
+            return f"the refusal left the folder changed: {changed[:3]}"
+        return None
+    return check
+
+
+def all_probes() -> list[Probe]:
+    import probe_input
+    import probe_runs
+    import probe_sweeps
+
+    probes = [*probe_input.PROBES, *probe_runs.PROBES, *probe_sweeps.PROBES]
+    names = [p.name for p in probes]
+    assert len(set(names)) == len(names), "two probes share a name"
+    return probes
+
+
+def select(probes: list[Probe], words: list[str]) -> list[Probe]:
+    """The probes a word names exactly (its whole name, or its fault: `F1` is F1's, never F11's)."""
+    unknown = [w for w in words if not any(w in (p.name, p.fault_id) for p in probes)]
+    if unknown:
+        raise SystemExit(f"probe.py: no probe named {', '.join(unknown)}; `--list` names them all")
+    return [p for p in probes if not words or p.name in words or p.fault_id in words]
+
+
+def _run_one(probe: Probe, root: Path) -> tuple[Probe, bool, str, float]:
+    folder = root / probe.name
+    folder.mkdir()
+    started = time.monotonic()
+    try:
+        wrong = probe.check(folder)
+    except Exception as e:  # a probe that cannot even be run is a failure, not a crash of the round
+        wrong = f"the probe raised {type(e).__name__}: {e}"
+    return probe, wrong is None, wrong or "holds", time.monotonic() - started
+
+
+def main(argv: list[str]) -> int:
+    listing = "--list" in argv
+    words = [w for w in argv if w != "--list"]
+    chosen = select(all_probes(), words)
+    if listing:
+        print("\n".join(p.name for p in chosen))
+        return 0
+    import probe_fixtures
+
+    started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="sigmarl-probe-") as tmp:
-        root = Path(tmp)
-        (root / "base").mkdir()
-        killed = killed_run(root / "base").parents[1]
-        chosen = [p for p in probes(killed) if not words or any(w in p.name for w in words)]
+        probe_fixtures.ROOT = Path(tmp) / "fixtures"
         failed = 0
-        for probe in chosen:
-            folder = root / probe.name
-            folder.mkdir()
-            if probe.setup:
-                probe.setup(folder)
-            ok, said = verdict(probe, folder)
-            failed += not ok
-            print(f"{'PASS' if ok else 'FAIL'}  {probe.name:20} {probe.fault}: {said}", flush=True)
-        print(f"{len(chosen) - failed} of {len(chosen)} probes passed")
-        return 1 if failed else 0
+        # two at a time: each probe is mostly one process on one thread
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            for probe, ok, said, seconds in pool.map(lambda p: _run_one(p, Path(tmp)), chosen):
+                failed += not ok
+                print(f"{'PASS' if ok else 'FAIL'}  {probe.name:26} {seconds:5.1f} s  {probe.fault}: {said}",
+                      flush=True)
+    print(f"{len(chosen) - failed} of {len(chosen)} probes passed in {time.monotonic() - started:.0f} s")
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -18,18 +18,18 @@ from sigmarl.tracking.records import log_evaluation
 FIXTURE = Path(__file__).parent / "data" / "results"
 
 
-def _store(tmp_path: Path, m0_fingerprints: list[str]) -> tuple[str, Path]:
+def _store(tmp_path: Path, m0_fingerprints: list[str], m4: bool = True) -> tuple[str, Path]:
     """A store whose experiment holds M4 seed 0 as the paper study composes it, and M0 seed 0
     evaluated once per fingerprint given (in that order); M0 seed 0's config folder is the quick
     budget's (what the refusal reads for what differs)."""
     uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
     client = MlflowClient(uri)
     exp = client.create_experiment("ablation")
-    m4 = compose_config(["study=paper", "obs=no_distance_to_boundaries", "model=M4"]).fingerprint
+    m4 = m4 and compose_config(["study=paper", "obs=no_distance_to_boundaries", "model=M4"]).fingerprint
     quick = tmp_path / "runs" / "M0" / "seed0"
     quick.mkdir(parents=True)
     compose_config(["ppo=smoke", "model=M0"])  # composes, so its config can be written as a run's
-    for model, fps in (("M4", [m4]), ("M0", m0_fingerprints)):
+    for model, fps in ((("M4", [m4]),) if m4 else ()) + (("M0", m0_fingerprints),):
         rows = pd.read_csv(FIXTURE / model / "seed0" / "evaluation_rows.csv")
         for fp in fps:
             log_evaluation(client, exp, rows, {"model": model, "seed": "0", "eval_key": "k", "fingerprint": fp,
@@ -59,6 +59,18 @@ def test_a_quick_m0_in_the_paper_experiment_is_refused_naming_both_fingerprints(
     assert f"M0 seed 0 was trained with fingerprint {quick.fingerprint}, not the variant's {paper.fingerprint}" in line
     assert "ppo.iterations: 3 -> 250" in line  # the smoke budget against the paper's
     assert "--partial" in line
+
+
+def test_a_quick_m0_alone_in_the_paper_experiment_is_refused_too(tmp_path, capsys):
+    """The sequence a new user typed: the only column is the quick M0, so nothing shows that its
+    budget is the study's command line (found by scripts/probe.py: reported as the paper's M0)."""
+    paper = compose_config(["study=paper", "obs=full", "model=M0"])
+    quick = compose_config(["ppo=smoke", "obs=full", "model=M0"])
+    uri, _ = _store(tmp_path, [quick.fingerprint], m4=False)
+    args = [a for a in _args(uri, tmp_path) if a not in ("--models", "M0,M4")]
+    line = one_line_exit_2(args, capsys)
+    assert f"fingerprint {quick.fingerprint}, not the variant's {paper.fingerprint}" in line
+    assert not (tmp_path / "out").exists()
 
 
 def test_partial_does_not_count_it_as_the_variant(tmp_path, capsys):
