@@ -33,6 +33,11 @@ def test_every_fault_of_both_rounds_has_a_probe_and_names_select_exactly():
     assert done.returncode != 0 and "no probe named F99" in done.stderr
 
 
+def test_the_reliability_page_lists_every_probe():
+    page = (ROOT / "docs" / "reliability.md").read_text()
+    assert [n for n in _names() if f"| `{n}` |" not in page] == []
+
+
 @pytest.mark.slow
 def test_the_probe_round_passes():
     done = subprocess.run([sys.executable, str(PROBE)], capture_output=True, text=True, timeout=900)
