@@ -97,3 +97,22 @@ def test_list_into_a_closed_pipe_is_quiet(tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert done.stdout.split() == ["map", "lanelets", "routes", "size", "(m)", "lane", "width"]
     assert done.stderr == ""
+
+
+def test_a_map_name_in_any_case_and_a_misspelt_one_gets_did_you_mean(tmp_path, monkeypatch, capsys):
+    from cli_errors import one_line_exit_2
+
+    from sigmarl.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["maps", "show", "Paper_Roundabout"]) == 0
+    assert list(tmp_path.glob("*.png"))  # drawn as paper_roundabout
+    line = one_line_exit_2(["maps", "show", "roundabot"], capsys)
+    assert "unknown map 'roundabot' (did you mean roundabout?)" in line
+
+
+def test_a_misspelt_scenario_gets_did_you_mean(capsys):
+    from cli_errors import one_line_exit_2
+
+    line = one_line_exit_2(["train", "ppo=smoke", "eval.scenarios=[Roundabot]", "tracking.enabled=false"], capsys)
+    assert "unknown scenario 'Roundabot' (did you mean Roundabout?)" in line

@@ -25,8 +25,11 @@ def _resolve_map(name: str, overrides: Sequence[str]):
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config, map_config
     from sigmarl.maps import load_map
+    from sigmarl.suggest import did_you_mean
     from sigmarl.validate import check_map
 
+    # a map's name in any case (`maps show CPM`): the config files are lower case
+    name = {n.lower(): n for n in _map_names()}.get(name.lower(), name)
     if name.endswith(".osm") or Path(name).suffix == ".osm":
         cfg = compose_config(["map=osm", f"map.path={Path(name).resolve()}", *overrides])
     elif name in _map_names() and not overrides:  # its file alone: no composition (~1 s each)
@@ -34,7 +37,8 @@ def _resolve_map(name: str, overrides: Sequence[str]):
     elif name in _map_names():
         cfg = compose_config([f"map={name}", *overrides])
     else:
-        raise SigmarlError(f"unknown map {name!r}; known maps: {', '.join(_map_names())} (or a path to an .osm file)")
+        raise SigmarlError(f"unknown map {name!r}{did_you_mean(name, _map_names())}; known maps: "
+                           f"{', '.join(_map_names())} (or a path to an .osm file)")
     return load_map(cfg.map)
 
 

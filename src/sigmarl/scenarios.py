@@ -37,7 +37,11 @@ def scenario_names() -> list[str]:
 def scenario(name: str) -> Scenario:
     files = config_files("scenario")
     if name not in files:
-        raise SigmarlError(f"unknown scenario {name!r}; choose from {', '.join(scenario_names())} "
+        import difflib  # lazy: only a misspelt scenario needs it
+
+        close = difflib.get_close_matches(name, scenario_names(), n=1, cutoff=0.6)
+        raise SigmarlError(f"unknown scenario {name!r}{f' (did you mean {close[0]}?)' if close else ''}; choose from "
+                           f"{', '.join(scenario_names())} "
                            "(or add conf/scenario/<name>.yaml in a --config-dir)")
     return _read(name, files[name])
 
