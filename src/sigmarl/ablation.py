@@ -10,7 +10,6 @@ and label a `sigmarl train` outside a study.
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -54,4 +53,6 @@ def model_label(obs: object | Mapping[str, Any]) -> str:
         return "M0"
     if len(off) == 1:
         return PRESET_TO_MODEL[f"no_{off[0]}"]
+    import hashlib  # here: OpenSSL's load would cost `sigmarl --help` (which reads PAPER_SCENARIOS) 7 ms
+
     return "custom-" + hashlib.sha1(obs_strategies(obs).encode()).hexdigest()[:6]
