@@ -194,6 +194,20 @@ def test_an_import_up_a_floor_is_named_with_its_line(tmp_path):
     assert upward(arrows(root), floors.get, {("p.low", "p.high"): "a reason"}) == []
 
 
+def test_the_architecture_page_draws_its_floor_table_from_the_floors():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("docs_reference", SRC.parent / "scripts" / "docs_reference.py")
+    docs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(docs)
+    page = (SRC.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    assert page.count("<!-- generated: floors -->") == 1  # the table is not written by hand
+    rows = [line for line in docs.expand(page).splitlines() if line.startswith("| ") and line.split(" | ")[0][2:3].isdigit()]
+    assert [r.split(" | ")[0] for r in rows] == [f"| {i} {f.name}" for i, f in reversed(list(enumerate(FLOORS)))]
+    assert "`tracking/`" in rows[-4] and "`env/params.py`" in rows[-1]  # packages as folders, modules as files
+    assert "Imports up a floor: " + ("none." if not UPWARD else f"{len(UPWARD)},") in docs.expand(page)
+
+
 def test_the_sweeps_own_process_does_not_import_torch():
     # the launcher gets sigmarl.sweep.task.run_job, which imports the job (torch, torchrl, the
     # environment: 4.5 s) only inside the job's process

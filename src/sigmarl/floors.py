@@ -25,7 +25,7 @@ class Floor(NamedTuple):
 FLOORS: tuple[Floor, ...] = (
     Floor("ground", "the errors a user can cause, the run folder, crash points, a job's resources and "
           "progress lines, the paper's vocabulary and constants, the metrics' records, the study-free "
-          "statistics, and this list",
+          "statistics, and the floors' own list",
           ("sigmarl", "sigmarl.errors", "sigmarl.crash", "sigmarl.run", "sigmarl.block_membership",
            "sigmarl.resources", "sigmarl.progress", "sigmarl.ablation", "sigmarl.env.params", "sigmarl.metrics",
            "sigmarl.stats", "sigmarl.floors")),
@@ -48,7 +48,7 @@ FLOORS: tuple[Floor, ...] = (
           ("sigmarl.compose", "sigmarl.validate")),
     Floor("training", "MAPPO: networks, losses, the loop, checkpoints, metrics.csv", ("sigmarl.training",)),
     Floor("evaluation", "test-mode rollouts, the evaluation protocol, animations", ("sigmarl.evaluation",)),
-    Floor("sweep and report", "the multirun and the report, side by side (neither imports the other)",
+    Floor("sweep and report", "the multirun and the report, side by side",
           ("sigmarl.sweep", "sigmarl.report")),
     Floor("commands", "the command line and what only it drives: `seeds=auto`, shell completion, "
           "Hydra's search-path plugin",
