@@ -22,11 +22,10 @@ import numpy as np
 import pandas as pd
 import torch
 
-from sigmarl.compose import scenario_map_config
 from sigmarl.env import paper_rules
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
-from sigmarl.maps import load_map
+from sigmarl.maps import load_map, scenario_map_config
 from sigmarl.scenarios import scenario
 from sigmarl.training.checkpoint import config_of
 from sigmarl.training.loop import load_policy

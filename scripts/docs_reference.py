@@ -1,8 +1,8 @@
 """The generated parts of the documentation, made from the code at every `mkdocs build`, so
 they cannot drift: the command line (from sigmarl's argparse parser), every config key (type,
 default and help line, from the config dataclasses), the shipped options of each config group
-and the scenarios (from the files of conf/ and their opening comments) and the files of a run
-folder (from `sigmarl.run`). A page asks for one with a marker line, e.g. `<!-- generated: config -->`.
+and the scenarios (from the files of conf/ and their opening comments), the files of a run
+folder (from `sigmarl.run`) and the floors of the imports (from `sigmarl.floors`). A page asks for one with a marker line, e.g. `<!-- generated: config -->`.
 
 mkdocs.yml loads this file as a hook (`on_page_markdown`); `python scripts/docs_reference.py
 NAME` prints one part.
@@ -124,7 +124,30 @@ def scenarios() -> str:
     return "\n".join(rows) + "\n"
 
 
-PARTS = {"cli": cli, "config": config, "run-folder": run_folder, "presets": presets, "scenarios": scenarios}
+def _room(name: str) -> str:
+    """A room as its file or folder in src/sigmarl/ (`errors.py`, `tracking/`, `env/params.py`),
+    or in src/ for one outside the package."""
+    path = Path(*name.split("."))
+    if name == "sigmarl":
+        return "`__init__.py`"
+    shown = path.relative_to("sigmarl").as_posix() if path.parts[0] == "sigmarl" else f"src/{path.as_posix()}"
+    return f"`{shown}/`" if (ROOT / "src" / path).is_dir() else f"`{shown}.py`"
+
+
+def floors() -> str:
+    """The floors of the imports, top first (an import points down the table), and the imports
+    allowed up a floor with their reasons, from `sigmarl.floors`."""
+    from sigmarl.floors import FLOORS, UPWARD
+
+    rows = ["| floor | rooms | what lives here |", "|---|---|---|"]
+    rows += [f"| {i} {_cell(f.name)} | {', '.join(_room(r) for r in f.rooms)} | {_cell(f.holds)} |"
+             for i, f in reversed(list(enumerate(FLOORS)))]
+    up = [f"- `{a}` imports `{b}`: {_cell(why)}" for (a, b), why in UPWARD.items()]
+    return "\n".join([*rows, "", "Imports up a floor: " + ("none." if not up else f"{len(up)}, each for a reason:"), *up]) + "\n"
+
+
+PARTS = {"cli": cli, "config": config, "run-folder": run_folder, "presets": presets, "scenarios": scenarios,
+         "floors": floors}
 
 
 def expand(markdown: str) -> str:

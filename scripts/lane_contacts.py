@@ -17,10 +17,10 @@ import pandas as pd
 import torch
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.env.paper_rules import for_evaluation
 from sigmarl.errors import SigmarlError
+from sigmarl.maps import scenario_map_config
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.scenarios import scenario_names
 from sigmarl.training.checkpoint import config_of

@@ -18,10 +18,10 @@ import torch
 from torch.overrides import TorchFunctionMode
 
 import sigmarl
-from sigmarl.compose import compose_config, map_config
+from sigmarl.compose import compose_config
 from sigmarl.env.route_bank import RouteBank
 from sigmarl.evaluation.rollout import evaluate_policy
-from sigmarl.maps import load_map
+from sigmarl.maps import load_map, map_config
 from sigmarl.training.lone import LoneLearner
 from sigmarl.training.mappo import collect, update
 

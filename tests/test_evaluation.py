@@ -5,10 +5,11 @@ from __future__ import annotations
 import pytest
 import torch
 
-from sigmarl.compose import compose_config, scenario_map_config
+from sigmarl.compose import compose_config
 from sigmarl.env import make_env
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rollout import evaluate_policy
+from sigmarl.maps import scenario_map_config
 from sigmarl.scenarios import scenario_names
 
 

@@ -13,12 +13,13 @@ import torch
 from tensordict import TensorDict
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from sigmarl.compose import compose_config, scenario_map_config
+from sigmarl.compose import compose_config
 from sigmarl.config import EvalConfig
 from sigmarl.env import make_env
 from sigmarl.env.factory import make_scenario, step_scenario
 from sigmarl.evaluation.protocol import evaluate_checkpoint
 from sigmarl.evaluation.rollout import as_tensor_policy
+from sigmarl.maps import scenario_map_config
 from sigmarl.training.networks import PolicyHead, make_actor
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -18,8 +18,7 @@ import torch
 from shapely.geometry import LineString, Polygon
 from shapely.ops import nearest_points
 
-from sigmarl.compose import map_config
-from sigmarl.maps import load_map
+from sigmarl.maps import load_map, map_config
 from sigmarl.maps.model import Lanelet, RoadMap
 from sigmarl.maps.routes import build_route, corridor_members
 

@@ -84,7 +84,8 @@ def test_missing_packaged_map_exits_2(capsys):
 def test_list_reads_each_map_file_as_composition_would(name):
     """`maps list` reads each conf/map file on its own (no Hydra composition per map): the same
     map config that `map=<name>` composes."""
-    from sigmarl.compose import compose_config, map_config
+    from sigmarl.compose import compose_config
+    from sigmarl.maps import map_config
 
     assert map_config(name) == compose_config([f"map={name}"]).map
 

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import torch
 
-from sigmarl.compose import map_config
 from sigmarl.env.collision import segment_table
 from sigmarl.env.route_bank import (
     RouteBank,
@@ -17,7 +16,7 @@ from sigmarl.env.route_bank import (
     reaches,
     segment_distances,
 )
-from sigmarl.maps import load_map
+from sigmarl.maps import load_map, map_config
 
 
 def _step(j: int, k: int, n: int, loop: bool) -> int:

@@ -50,6 +50,8 @@ def test_the_site_builds_with_every_page(site):
         assert f"<code>{option}</code>" in config, f"{path.name} is not on the configuration page"
     cli = (site / "reference" / "cli" / "index.html").read_text(encoding="utf-8")
     assert "sigmarl sweep" in cli and "--compare-paper" in cli
+    architecture = (site / "architecture" / "index.html").read_text(encoding="utf-8")
+    assert "generated:" not in architecture and "<code>floors.py</code>" in architecture  # the floor table
 
 
 def test_a_broken_link_fails_the_strict_build(tmp_path):

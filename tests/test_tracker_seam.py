@@ -90,11 +90,11 @@ def test_the_tracking_switch_is_read_in_one_place() -> None:
             if (isinstance(node, ast.Attribute) and node.attr == "enabled"
                     and isinstance(node.value, ast.Attribute) and node.value.attr == "tracking"):
                 readers.append(f"{path.relative_to(SRC)}:{node.lineno}")
-    assert readers == ["tracking/tracker.py:" + str(_line_of("if not cfg.tracking.enabled:"))]
+    assert readers == ["tracking/guard.py:" + str(_line_of("if not cfg.tracking.enabled:"))]
 
 
 def _line_of(text: str) -> int:
-    lines = (SRC / "tracking" / "tracker.py").read_text().splitlines()
+    lines = (SRC / "tracking" / "guard.py").read_text().splitlines()
     return next(i for i, line in enumerate(lines, 1) if text in line)
 
 

@@ -1,7 +1,8 @@
 """The paper's vocabulary: its five observation strategies (the one list every module reads),
-its six models' presets, and the labels of a lone run derived from its flags (`model_label`).
-It imports no config module (sigmarl.config imports it, for the label resolver): the flags are
-read from an ObsConfig, or the mapping Hydra hands the resolver, by name.
+its six models' presets, its four scenarios (Table I's), and the labels of a lone run derived
+from its flags (`model_label`). It imports no config module (sigmarl.config imports it, for the
+label resolver and the default scenarios): the flags are read from an ObsConfig, or the
+mapping Hydra hands the resolver, by name.
 
 A study's own labels are its variants (`conf/study/*.yaml`); M0..M5 name the paper's models
 and label a `sigmarl train` outside a study.
@@ -9,7 +10,6 @@ and label a `sigmarl train` outside a study.
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -26,6 +26,9 @@ OBS_FLAGS: dict[str, str] = {
 # above); model -> observation preset (conf/obs/<preset>.yaml).
 MODELS: dict[str, str] = {"M0": "full", **{f"M{k}": f"no_{flag}" for k, flag in enumerate(OBS_FLAGS, 1)}}
 PRESET_TO_MODEL = {preset: model for model, preset in MODELS.items()}
+
+# Table I's four scenarios, in the paper's order: the default evaluation, and the one order tables use.
+PAPER_SCENARIOS = ("CPM", "Intersection", "On-Ramp", "Roundabout")
 
 # a training iteration's timed phases (metrics.csv columns and MLflow metrics); their sum is its compute time
 TIMINGS = ("time_collect_s", "time_advantage_s", "time_optimise_s")
@@ -50,4 +53,6 @@ def model_label(obs: object | Mapping[str, Any]) -> str:
         return "M0"
     if len(off) == 1:
         return PRESET_TO_MODEL[f"no_{off[0]}"]
+    import hashlib  # here: OpenSSL's load would cost `sigmarl --help` (which reads PAPER_SCENARIOS) 7 ms
+
     return "custom-" + hashlib.sha1(obs_strategies(obs).encode()).hexdigest()[:6]

@@ -23,8 +23,8 @@ def _map_names() -> list[str]:
 def _resolve_map(name: str, overrides: Sequence[str]):
     """A map by config name (conf/map/<name>.yaml) or by OSM file path."""
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
-    from sigmarl.compose import compose_config, map_config
-    from sigmarl.maps import load_map
+    from sigmarl.compose import compose_config
+    from sigmarl.maps import load_map, map_config
     from sigmarl.suggest import did_you_mean
     from sigmarl.validate import check_map
 

@@ -1,7 +1,7 @@
-"""Compose the Hydra config for a command from the user's overrides, and read map configs.
+"""Compose the Hydra config for a command from the user's overrides.
 
-The boundary between Hydra and the rest of sigmarl: what leaves here is typed (`Config`,
-`MapConfig`), never an OmegaConf `DictConfig`.
+The boundary between Hydra and the rest of sigmarl: what leaves here is typed (`Config`), never
+an OmegaConf `DictConfig`. A map's config is read by `sigmarl.maps.map_config`.
 """
 
 from __future__ import annotations
@@ -19,12 +19,11 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from sigmarl.config import Config, MapConfig, as_config, register_configs
+from sigmarl.config import Config, as_config, register_configs
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import fingerprint
-from sigmarl.paths import conf_dir, config_files, user_conf_dirs
-from sigmarl.readers import check_config_dir, read_yaml
-from sigmarl.scenarios import scenario
+from sigmarl.paths import conf_dir, user_conf_dirs
+from sigmarl.readers import check_config_dir
 from sigmarl.suggest import hydra_error_message, unknown_keys_message
 from sigmarl.validate import check
 
@@ -114,28 +113,6 @@ def _unknown_keys(cfg: DictConfig, schema: DictConfig, prefix: str = "") -> list
                 and dataclasses.is_dataclass(OmegaConf.get_type(schema[key])):  # not a free dict
             out += _unknown_keys(cfg[key], schema[key], f"{prefix}{key}.")
     return out
-
-
-def map_config(name: str) -> MapConfig:
-    """conf/map/<name>.yaml (or a user's, see `sigmarl.paths`) on the MapConfig schema, without
-    Hydra's global state, so that code running inside a Hydra job (a sweep's evaluation) can
-    read it. The one reader of a map config file outside Hydra's composition."""
-    files = config_files("map")
-    if name not in files:
-        raise SigmarlError(f"no map config {name!r} (conf/map/{name}.yaml); known maps: {', '.join(sorted(files))}")
-    values = read_yaml(files[name], "a map config")
-    if not isinstance(values, dict):
-        raise SigmarlError(f"{files[name]}: a map config holds keys and values; correct the file")
-    values.pop("defaults", None)
-    try:
-        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(MapConfig), values))
-    except OmegaConfBaseException as e:
-        raise SigmarlError(f"{files[name]}: {str(e).splitlines()[0]}") from e
-
-
-def scenario_map_config(name: str) -> MapConfig:
-    """The map config of an evaluation scenario (conf/scenario/<name>.yaml names it)."""
-    return map_config(scenario(name).map)
 
 
 def compose_block(overrides: Sequence[str] = ()) -> list[Config]:

@@ -23,10 +23,9 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from sigmarl.ablation import model_label
+from sigmarl.ablation import PAPER_SCENARIOS, model_label
 from sigmarl.errors import SigmarlError
 from sigmarl.reward_config import RewardConfig
-from sigmarl.scenarios import PAPER_SCENARIOS
 from sigmarl.vehicle_config import VehicleConfig
 
 

@@ -127,6 +127,12 @@ def raise_if_interrupted(error: BaseException) -> None:
         raise stop from error
 
 
+def first_line(error: BaseException) -> str:
+    """An error as one line: its type and the first line of its message (300 characters at most)."""
+    text = str(error).strip().splitlines()
+    return f"{type(error).__name__}: {text[0][:300]}" if text else type(error).__name__
+
+
 def end_status(error: BaseException) -> str:
     """The tracker status of a run that `error` ended: KILLED (resumable) or FAILED."""
     return "KILLED" if was_interrupted(error) else "FAILED"

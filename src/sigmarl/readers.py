@@ -8,19 +8,17 @@ a traceback.
 - `read_run_config`: a run folder's `config.yaml`.
 - `read_json`: a JSON record of an expected shape (`seeds_auto.json`, the sweep's plan file,
   `evaluation.json`).
-- `rows_measured`: whether a run's evaluation rows are whole and measured under a protocol.
 - `read_metrics`: a run's `metrics.csv`, line by line (whole-number iterations in
   1..MAX_ITERATION, finite values); `read_training_curve`: the same file as a report reads it.
   A resume reads it through `sigmarl.training.metrics_file.read` (every iteration once, in order).
 
 The run folder's other files have their readers beside their writers: checkpoints (weights,
 optimiser state, checksum) in `sigmarl.training.checkpoint.load`, evaluation rows in
-`sigmarl.report.folder.check_rows`.
+`sigmarl.rows` (`check_rows`, `rows_measured`).
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from itertools import islice
@@ -123,30 +121,6 @@ def read_json(path: Path, what: str, fix: str, shape: dict[str, type] | None = N
             found = "missing" if key not in value else f"a {type(value[key]).__name__}"
             raise SigmarlError(f"{path}: {what}'s {key!r} must be a {kind.__name__}, it is {found}; {fix}")
     return value
-
-
-def rows_measured(rows_file: Path, meta_file: Path, key: str) -> bool:
-    """Whether `rows_file` holds whole evaluation rows measured under the protocol `key`: its
-    note (`meta_file`) names that key and, for rows saved since it records one, their SHA-256
-    (a cut, edited or duplicated line changes it); older rows must pass the report's checks."""
-    try:
-        meta = json.loads(meta_file.read_text(encoding="utf-8"))
-        data = rows_file.read_bytes()
-    except (OSError, ValueError):
-        return False
-    if not isinstance(meta, dict) or meta.get("eval_key") != key:
-        return False
-    if "rows_sha256" in meta:
-        return hashlib.sha256(data).hexdigest() == meta["rows_sha256"]
-    import pandas as pd
-
-    from sigmarl.report.folder import check_rows
-
-    try:
-        check_rows(pd.read_csv(rows_file, float_precision="round_trip"), rows_file)
-    except (SigmarlError, ValueError):  # pandas' parser errors are ValueErrors
-        return False
-    return True
 
 
 def read_metrics(path: Path, upto: int | None = None, whole: bool = False,

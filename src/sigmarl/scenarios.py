@@ -13,11 +13,9 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
+from sigmarl.ablation import PAPER_SCENARIOS
 from sigmarl.errors import SigmarlError
-from sigmarl.paths import conf_dir, config_files
-
-# Table I's four, in the paper's order: the default evaluation, and the one order tables use.
-PAPER_SCENARIOS = ("CPM", "Intersection", "On-Ramp", "Roundabout")
+from sigmarl.paths import config_files
 
 
 @dataclass(frozen=True)
@@ -58,30 +56,3 @@ def _read(name: str, path: Path) -> Scenario:
     if not isinstance(n, int) or isinstance(n, bool) or n < 1:
         raise SigmarlError(f"{path}: n_agents must be a positive integer, got {n!r}")
     return Scenario(name, str(values["map"]), n, bool(values.get("paper", False)))
-
-
-def check_fits(name: str) -> Scenario:
-    """Scenario `name`, if it can run: its map has a config, and (for a user's scenario; the
-    package's are tested) its agents fit on the map's routes. Otherwise one line naming the
-    file, before anything trains."""
-    found = scenario(name)
-    path, maps = config_files("scenario")[name], config_files("map")
-    if found.map not in maps:
-        raise SigmarlError(f"{path}: scenario {name} names map {found.map!r}, which has no conf/map/{found.map}.yaml "
-                           f"in any config folder; known maps: {', '.join(sorted(maps))}")
-    if not path.is_relative_to(conf_dir()):
-        room = _room(found.map, maps[found.map])
-        if found.n_agents > room:
-            raise SigmarlError(f"{path}: scenario {name} has {found.n_agents} agents, but map {found.map}'s routes "
-                               f"hold at most {room} vehicles at the spawn spacing; use fewer n_agents")
-    return found
-
-
-@cache
-def _room(map_name: str, path: Path) -> int:
-    """How many vehicles the map's routes hold (`sigmarl.env.spawn.capacity`); loads the map once."""
-    from sigmarl.compose import map_config
-    from sigmarl.env.spawn import capacity
-    from sigmarl.maps import load_map
-
-    return capacity(load_map(map_config(map_name)).routes)

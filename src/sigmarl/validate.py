@@ -14,14 +14,17 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from functools import cache
+from pathlib import Path
 from typing import Literal, get_args
 
 from sigmarl.config import Config, EvalConfig, MapConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import LABEL_RULE, check_label, is_label
 from sigmarl.metrics import metric
+from sigmarl.paths import conf_dir, config_files
 from sigmarl.reward_config import check_reward
-from sigmarl.scenarios import check_fits, scenario_names
+from sigmarl.scenarios import Scenario, scenario, scenario_names
 from sigmarl.tracking.tracker import tracker_class
 from sigmarl.vehicle_config import check_vehicle
 
@@ -252,7 +255,34 @@ def check_eval(eval_cfg: EvalConfig, scenarios: Sequence[str] | None = None) -> 
     if not names:
         raise SigmarlError(f"eval.scenarios is empty; choose from {', '.join(scenario_names())}")
     for name in names:
-        check_fits(name)  # an unknown name, a malformed file, a missing map or too many agents: one line
+        _check_fits(name)  # an unknown name, a malformed file, a missing map or too many agents: one line
     if len(set(names)) != len(names):
         raise SigmarlError(f"eval.scenarios names a scenario twice: {', '.join(names)}")
     return names
+
+
+def _check_fits(name: str) -> Scenario:
+    """Scenario `name`, if it can run: its map has a config, and (for a user's scenario; the
+    package's are tested) its agents fit on the map's routes. Otherwise one line naming the
+    file, before anything trains."""
+    found = scenario(name)
+    path, maps = config_files("scenario")[name], config_files("map")
+    if found.map not in maps:
+        raise SigmarlError(f"{path}: scenario {name} names map {found.map!r}, which has no conf/map/{found.map}.yaml "
+                           f"in any config folder; known maps: {', '.join(sorted(maps))}")
+    if not path.is_relative_to(conf_dir()):
+        room = _room(found.map, maps[found.map])
+        if found.n_agents > room:
+            raise SigmarlError(f"{path}: scenario {name} has {found.n_agents} agents, but map {found.map}'s routes "
+                               f"hold at most {room} vehicles at the spawn spacing; use fewer n_agents")
+    return found
+
+
+@cache
+def _room(map_name: str, path: Path) -> int:
+    """How many vehicles the map's routes hold (`sigmarl.env.spawn.capacity`); loads the map once."""
+    # lazy: a map is loaded only for a user's scenario, and the environment's modules cost seconds
+    from sigmarl.env.spawn import capacity
+    from sigmarl.maps import load_map, map_config
+
+    return capacity(load_map(map_config(map_name)).routes)

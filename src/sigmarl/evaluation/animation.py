@@ -7,9 +7,9 @@ from pathlib import Path
 
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from sigmarl.compose import scenario_map_config
 from sigmarl.env import make_env
 from sigmarl.env.render import render_rollout
+from sigmarl.maps import scenario_map_config
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training.loop import load_policy

@@ -23,7 +23,7 @@ from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noq
 from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
 from sigmarl.policy_input import check_evaluable
-from sigmarl.readers import rows_measured
+from sigmarl.rows import rows_measured
 from sigmarl.run import ROWS_FILE, ROWS_META, Run, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker, open_tracker

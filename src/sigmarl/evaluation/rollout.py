@@ -16,11 +16,11 @@ from tensordict.nn import NormalParamExtractor, TensorDictModuleBase
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
 
-from sigmarl.compose import scenario_map_config
 from sigmarl.config import Config, EvalConfig
 from sigmarl.env.factory import make_scenario, step_scenario
 from sigmarl.env.paper_rules import for_evaluation
 from sigmarl.errors import SigmarlError
+from sigmarl.maps import scenario_map_config
 from sigmarl.progress import Progress
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.training.networks import PolicyHead

@@ -272,8 +272,7 @@ def publish(report: Report, staging: Path, out_dir: Path) -> None:
 def _add_maps(report: Report, out_dir: Path, scenarios: list[str]) -> None:
     """The maps the scenarios ran on, as the evaluation builds them."""
     # lazy: Hydra and the maps only where map figures are drawn
-    from sigmarl.compose import scenario_map_config
-    from sigmarl.maps import load_map
+    from sigmarl.maps import load_map, scenario_map_config
     from sigmarl.maps.plot import save_scenario_maps
 
     maps = [(s, load_map(scenario_map_config(s)), scenario(s).n_agents) for s in scenarios]

@@ -19,24 +19,18 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from sigmarl.ablation import MODELS, TIMINGS
 from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
-from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
 from sigmarl.readers import read_training_curve
 from sigmarl.report.coverage import run_state
+from sigmarl.rows import check_rows
 from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
-from sigmarl.scenarios import scenario_names
 
 _SEED_DIR = re.compile(r"seed(-?\d+)")
-RATES = COLLISION_COLUMNS  # fractions of a simulation's steps
-# Speeds are averaged in float32 and written to 8 significant digits: AS may exceed the top
-# speed (the vehicle's, env.vehicle.max_speed) by rounding only.
-AS_ROUNDING = 1e-4
 
 
 @dataclass(frozen=True)
@@ -79,60 +73,6 @@ def _read_csv(path: Path) -> pd.DataFrame:
         return pd.read_csv(path, float_precision="round_trip")
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
         raise SigmarlError(f"{path} is not a readable CSV: {str(e).splitlines()[0]}") from e
-
-
-def check_rows(rows: pd.DataFrame, path: Path, top_speed: float = VEHICLE.max_speed) -> pd.DataFrame:
-    """`rows` (as read from `path`) if they are evaluation rows a report can trust: the
-    columns, known scenario names, whole simulation numbers, finite metrics, rates in [0, 1]
-    with CR_total = CR_AA + CR_AL, CD >= 0 and AS in [0, top speed]. A truncated or edited
-    file fails here, in one line naming it, instead of adding a made-up scenario or dropping
-    a seed from the table."""
-    missing = [c for c in ("scenario", *METRIC_COLUMNS) if c not in rows.columns]
-    if missing:
-        raise SigmarlError(f"{path}: evaluation rows lack the column(s) {', '.join(missing)}")
-
-    def bad(what: str, mask: pd.Series) -> None:
-        if mask.any():
-            first, more = int(np.flatnonzero(mask.to_numpy())[0]), int(mask.sum()) - 1
-            raise SigmarlError(f"{path}: {what} on line {first + 2}"  # the header is line 1
-                               + (f" and {more} more" if more else ""))
-
-    scenario = rows["scenario"].astype(str)
-    unknown = ~scenario.isin(scenario_names())  # conf/scenario, a user's folders included
-    bad(f"unknown scenario {scenario[unknown].iloc[0] if unknown.any() else ''!r}", unknown)
-    numbers = [c for c in ("simulation", *METRIC_COLUMNS) if c in rows.columns]  # older files lack simulation
-    metrics = rows[numbers].apply(pd.to_numeric, errors="coerce").astype(float)
-    for column in metrics:
-        bad(f"{column} is not a finite number", ~np.isfinite(metrics[column]))
-    if "simulation" in metrics:
-        bad("simulation is not a whole number >= 0", (metrics["simulation"] < 0) | (metrics["simulation"] % 1 != 0))
-    for column in RATES:
-        bad(f"{column} is not a rate in [0, 1]", (metrics[column] < 0) | (metrics[column] > 1))
-    parts = metrics["CR_AA"] + metrics["CR_AL"]
-    bad("CR_total is not CR_AA + CR_AL", (metrics["CR_total"] - parts).abs() > 1e-6 + 1e-5 * parts)
-    bad("CD (cm from the center line) is negative", metrics["CD"] < 0)
-    bad(f"AS (m/s) is not in [0, {top_speed}]", (metrics["AS"] < 0) | (metrics["AS"] > top_speed + AS_ROUNDING))
-    if "simulation" in metrics:
-        bad("a simulation is given twice for its scenario", pd.Series(
-            pd.DataFrame({"s": scenario, "n": metrics["simulation"]}).duplicated().to_numpy(), index=rows.index))
-        _check_simulations(scenario, metrics["simulation"], path)
-    return rows
-
-
-def _check_simulations(scenario: pd.Series, simulation: pd.Series, path: Path) -> None:
-    """Every scenario holds simulations 0..n-1, the same n for each (the protocol's eval.n_sims):
-    a row dropped from a file otherwise moves a scenario's mean without a word."""
-    counts = {}
-    for name, sims in simulation.groupby(scenario, sort=False):
-        n = len(sims)
-        if sorted(sims.astype(int)) != list(range(n)):
-            lost = sorted(set(range(int(sims.max()) + 1)) - set(sims.astype(int)))
-            raise SigmarlError(f"{path}: scenario {name} lacks simulation(s) {lost[:5]}; restore the file, "
-                               "or evaluate the run again (delete evaluation_rows.csv and sweep again)")
-        counts[name] = n
-    if len(set(counts.values())) > 1:
-        raise SigmarlError(f"{path}: the scenarios hold different numbers of simulations ({counts}); restore the "
-                           "file, or evaluate the run again (delete evaluation_rows.csv and sweep again)")
 
 
 def rows_of(run: RunFolder) -> pd.DataFrame:

@@ -232,7 +232,7 @@ def finished(job: Job) -> bool:
     """Whether the job's run folder holds this very job, done: `evaluated.txt`, no `failed.txt`,
     a config.yaml of the same fingerprint (checked when the plan was made) and whole rows
     measured under the job's evaluation protocol."""
-    from sigmarl.readers import rows_measured
+    from sigmarl.rows import rows_measured
 
     run = Run(job.run_dir)
     if not run.done_file.is_file() or run.failed_file.exists() or not run.config_file.is_file():

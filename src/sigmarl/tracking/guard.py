@@ -1,4 +1,5 @@
-"""A user's tracker (`tracking.backend=package.module:Class`) held to the promise MLflow's
+"""Which tracker a command records to (`open_tracker`, the one reader of `tracking.enabled`),
+and a user's tracker (`tracking.backend=package.module:Class`) held to the promise MLflow's
 keeps: it fails in one line when the command starts (import, constructor, creating the run),
 and once the work runs, a failing call costs one warning, not the training or evaluation.
 The run folder is the primary record; a re-run brings the tracker up to date from it."""
@@ -8,15 +9,20 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from sigmarl.errors import SigmarlError, raise_if_interrupted
-from sigmarl.tracking.tracker import Rows, Tracker, TrainingRun
+from sigmarl.errors import SigmarlError, first_line, raise_if_interrupted
+from sigmarl.tracking.tracker import (
+    BACKENDS,
+    NullTracker,
+    Rows,
+    Tracker,
+    TrainingRun,
+    tracker_class,
+)
 
-
-def first_line(error: BaseException) -> str:
-    text = str(error).strip().splitlines()
-    return f"{type(error).__name__}: {text[0][:300]}" if text else type(error).__name__
+if TYPE_CHECKING:
+    from sigmarl.config import Config
 
 
 def at_start(backend: str, what: str, call: Callable[[], Any]) -> Any:
@@ -105,3 +111,14 @@ class GuardedTracker(Tracker):
 
     def log_report(self, composite, paths, tags, source=None) -> str | None:
         return self.warner.call("log_report", self.inner.log_report, composite, paths, tags, source)
+
+
+def open_tracker(cfg: Config) -> Tracker:
+    """The tracker the command records to: the one place the tracking switch is decided."""
+    if not cfg.tracking.enabled:
+        return NullTracker(cfg)
+    backend = cfg.tracking.backend
+    cls = tracker_class(backend)
+    if backend in BACKENDS:  # sigmarl's own: it warns and fails in one line by itself
+        return cls(cfg)
+    return GuardedTracker(at_start(backend, "its constructor", lambda: cls(cfg)), backend, cfg)

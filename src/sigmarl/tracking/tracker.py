@@ -1,10 +1,10 @@
 """The tracker seam: where sigmarl records its runs, decided in one place.
 
 A `Tracker` receives what the commands record: training runs (params, per-iteration metrics,
-artifacts, how they ended), evaluation runs and report runs. `open_tracker(cfg)` is the only
-code that reads `tracking.enabled` and `tracking.backend`: `NullTracker` when tracking is off,
-else the class the backend names (`mlflow`, or `package.module:Class` for a tracker of your
-own, e.g. TensorBoard or W&B: one subclass of `Tracker` and one of `TrainingRun`).
+artifacts, how they ended), evaluation runs and report runs. `tracker_class` finds the class a
+`tracking.backend` names (`mlflow`, or `package.module:Class` for a tracker of your own, e.g.
+TensorBoard or W&B: one subclass of `Tracker` and one of `TrainingRun`);
+`sigmarl.tracking.guard.open_tracker(cfg)` decides which one a command records to.
 
 Run folders stay the primary record. A tracker is a view of them: a store that stops answering
 costs a warning, not the training, and a re-run brings the view up to date (`sync_metrics`,
@@ -21,7 +21,7 @@ from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sigmarl.errors import SigmarlError
+from sigmarl.errors import SigmarlError, first_line
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -166,23 +166,8 @@ def tracker_class(backend: str) -> type[Tracker]:
     try:
         cls = getattr(importlib.import_module(module_name), class_name)
     except Exception as e:  # not found, a syntax error, or whatever its import raised
-        from sigmarl.tracking.guard import first_line
-
         raise SigmarlError(f"tracking.backend {backend!r}: cannot import {target} ({first_line(e)}); fix it, "
                            "or set tracking.enabled=false to run without it") from e
     if not (isinstance(cls, type) and issubclass(cls, Tracker)):
         raise SigmarlError(f"tracking.backend {backend!r}: {target} is not a sigmarl.tracking.Tracker")
     return cls
-
-
-def open_tracker(cfg: Config) -> Tracker:
-    """The tracker the command records to: the one place the tracking switch is decided."""
-    if not cfg.tracking.enabled:
-        return NullTracker(cfg)
-    backend = cfg.tracking.backend
-    cls = tracker_class(backend)
-    if backend in BACKENDS:  # sigmarl's own: it warns and fails in one line by itself
-        return cls(cfg)
-    from sigmarl.tracking.guard import GuardedTracker, at_start
-
-    return GuardedTracker(at_start(backend, "its constructor", lambda: cls(cfg)), backend, cfg)

@@ -1,0 +1,71 @@
+"""The floors of the house: sigmarl's modules in layers, ground first, and every import (at
+module level or inside a function, `if TYPE_CHECKING:` included) points to its own floor or one
+below. A lazy import buys start-up time; it never lets a low room reach up.
+
+Data only, read twice: `tests/test_import_graph.py` holds the code to it (no circle, no import
+up a floor unless `UPWARD` names it with its reason) and the architecture page's floor table
+is drawn from it (`scripts/docs_reference.py`).
+
+A room is a module or a package (all of its modules); the longest name that holds a module
+decides its floor, so `sigmarl.env.params` (the paper's constants) can sit lower than the
+rest of `sigmarl.env`. The top package, `sigmarl`, is a room of its own module only.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class Floor(NamedTuple):
+    name: str
+    holds: str  # what lives here, for the architecture page
+    rooms: tuple[str, ...]
+
+
+FLOORS: tuple[Floor, ...] = (
+    Floor("ground", "the errors a user can cause, the run folder, crash points, a job's resources and "
+          "progress lines, the paper's vocabulary and constants, the metrics' records, the study-free "
+          "statistics, and the floors' own list",
+          ("sigmarl", "sigmarl.errors", "sigmarl.crash", "sigmarl.run", "sigmarl.block_membership",
+           "sigmarl.resources", "sigmarl.progress", "sigmarl.ablation", "sigmarl.env.params", "sigmarl.metrics",
+           "sigmarl.stats", "sigmarl.floors")),
+    Floor("config records", "the structured-config schema and its groups' records; every key's help "
+          "line; \"did you mean\"",
+          ("sigmarl.config", "sigmarl.reward_config", "sigmarl.vehicle_config", "sigmarl.config_help",
+           "sigmarl.suggest")),
+    Floor("readers and identity", "the checked readers of damageable files, evaluation rows' checks, "
+          "where the config tree is, the scenarios, a run's identity, what makes two evaluations "
+          "interchangeable, what a policy reads",
+          ("sigmarl.readers", "sigmarl.rows", "sigmarl.paths", "sigmarl.scenarios", "sigmarl.identity",
+           "sigmarl.eval_key", "sigmarl.policy_input")),
+    Floor("tracking", "where runs are recorded: the tracker seam and the MLflow tracker",
+          ("sigmarl.tracking",)),
+    Floor("maps", "road maps: the model, routes, loaders and builders, a map by name",
+          ("sigmarl.maps",)),
+    Floor("env", "the VMAS scenario and its tensor kernels", ("sigmarl.env",)),
+    Floor("composition", "a command's config composed by Hydra and checked whole (its scenarios' "
+          "maps loaded to count their room)",
+          ("sigmarl.compose", "sigmarl.validate")),
+    Floor("training", "MAPPO: networks, losses, the loop, checkpoints, metrics.csv", ("sigmarl.training",)),
+    Floor("evaluation", "test-mode rollouts, the evaluation protocol, animations", ("sigmarl.evaluation",)),
+    Floor("sweep and report", "the multirun and the report, side by side",
+          ("sigmarl.sweep", "sigmarl.report")),
+    Floor("commands", "the command line and what only it drives: `seeds=auto`, shell completion, "
+          "Hydra's search-path plugin",
+          ("sigmarl.cli", "sigmarl.__main__", "sigmarl.adaptive", "sigmarl.completion",
+           "hydra_plugins.sigmarl_config_dirs")),
+)
+
+# (importing module, imported module) -> why it may import up a floor; at most three.
+UPWARD: dict[tuple[str, str], str] = {}
+
+
+def floor_of(module: str) -> int | None:
+    """The index in FLOORS of the floor `module` is on (None: on none)."""
+    best, found = -1, None
+    for i, floor in enumerate(FLOORS):
+        for room in floor.rooms:
+            holds = module == room or (room != "sigmarl" and module.startswith(room + "."))
+            if holds and len(room) > best:
+                best, found = len(room), i
+    return found
