@@ -31,6 +31,7 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 
 from sigmarl.compose import compose_config
+from sigmarl.training.block import BlockLearner
 from sigmarl.training.lone import LoneLearner
 from sigmarl.training.loop import learning_rate
 from sigmarl.training.mappo import collect, update
@@ -203,6 +204,35 @@ def measure_precision(cfg, epochs: int) -> dict[str, float]:
     return cpu
 
 
+def _iteration_seconds(learner, cfg, it: int, epochs: int) -> float:
+    """CPU seconds of one `iterate()` at `epochs` epochs, the optimisation scaled to ppo.epochs
+    (the phases split in the proportions of their wall times)."""
+    learner.cfg = replace(cfg, ppo=replace(cfg.ppo, epochs=epochs))
+    learner.reseed(it)
+    learner.set_lr(learning_rate(cfg.ppo, it))
+    c = time.process_time()
+    _, ph = learner.iterate()
+    cpu = time.process_time() - c
+    return cpu * (ph["collect"] + ph["advantage"] + ph["optimise"] * cfg.ppo.epochs / epochs) / ph["total"]
+
+
+def measure_block_of_one(cfg, epochs: int, repeats: int) -> dict[str, float]:
+    """Median CPU seconds per iteration (one thread) of the lone learner and of a seed block of
+    one, built side by side in this process and run in turn (lone, block, lone, ...)."""
+    torch.set_num_threads(1)
+    learners = {"lone": LoneLearner(cfg, torch.device("cpu")),
+                "block S=1": BlockLearner(cfg, [cfg.seed], torch.device("cpu"))}
+    seconds: dict[str, list[float]] = {k: [] for k in learners}
+    for name, learner in learners.items():
+        _iteration_seconds(learner, cfg, 0, 1)  # warm-up, not counted
+    for r in range(repeats):
+        for name, learner in learners.items():
+            seconds[name].append(_iteration_seconds(learner, cfg, r + 1, epochs))
+    for learner in learners.values():
+        learner.close()
+    return {k: statistics.median(v) for k, v in seconds.items()}
+
+
 def _cpu_name() -> str:
     try:
         for line in open("/proc/cpuinfo"):
@@ -234,9 +264,19 @@ def main() -> None:
     p.add_argument("--precision-epochs", type=int, default=10,
                    help="epochs per precision in the fp32/bf16 comparison (0: skip it)")
     p.add_argument("--only-precision", action="store_true", help="run only the fp32/bf16 comparison")
+    p.add_argument("--block-of-one", type=int, default=0, metavar="N",
+                   help="only compare the lone learner with a seed block of one, N iterations each")
     p.add_argument("overrides", nargs="*", default=[], help="Hydra overrides (default: paper)")
     args = p.parse_args()
     cfg = compose_config(["tracking.enabled=false", *args.overrides])
+    if args.block_of_one:
+        m = measure_block_of_one(cfg, args.epochs, args.block_of_one)
+        print(f"lone vs block of one: CPU seconds per iteration, one thread, median of {args.block_of_one}, "
+              f"optimisation over {args.epochs} epochs scaled to {cfg.ppo.epochs}")
+        for name, seconds in m.items():
+            print(f"  {name:<10}{seconds:7.3f}")
+        print(f"  block S=1 / lone   x{m['block S=1'] / m['lone']:.4f}")
+        return
     if args.only_precision:
         report_precision(cfg, max(args.precision_epochs, 1))
         return

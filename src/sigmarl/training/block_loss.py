@@ -72,7 +72,7 @@ class BlockPPOLoss:
         loc, scale = h.scale_map(out.float())
         value = value.float()
         log_scale = scale.log()
-        log_prob = gaussian_log_prob((take("u") - loc) / scale, log_scale) - take("log_jac")
+        log_prob = gaussian_log_prob((take("u") - loc) / scale, scale.log()) - take("log_jac")
         log_weight = (log_prob - take("old_log_prob")).unsqueeze(-1)
         adv = take("advantage")
         if self.normalize_advantage:
