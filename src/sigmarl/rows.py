@@ -1,21 +1,23 @@
 """Evaluation rows (`evaluation_rows.csv`: one row per simulation, a column per metric of
 `sigmarl.metrics`) and the checks every reader trusts them by: a report (`check_rows`) and a
 resume or a sweep's plan (`rows_measured`, which takes saved rows' checksum where their note
-records one)."""
+records one). pandas is imported where rows are checked: a sweep's launcher asks whether its
+jobs are done, by checksum, without it."""
 
 from __future__ import annotations
 
 import hashlib
 import json
 from pathlib import Path
-
-import numpy as np
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
 from sigmarl.scenarios import scenario_names
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 RATES = COLLISION_COLUMNS  # fractions of a simulation's steps
 # Speeds are averaged in float32 and written to 8 significant digits: AS may exceed the top
@@ -29,6 +31,9 @@ def check_rows(rows: pd.DataFrame, path: Path, top_speed: float = VEHICLE.max_sp
     with CR_total = CR_AA + CR_AL, CD >= 0 and AS in [0, top speed]. A truncated or edited
     file fails here, in one line naming it, instead of adding a made-up scenario or dropping
     a seed from the table."""
+    import numpy as np
+    import pandas as pd
+
     missing = [c for c in ("scenario", *METRIC_COLUMNS) if c not in rows.columns]
     if missing:
         raise SigmarlError(f"{path}: evaluation rows lack the column(s) {', '.join(missing)}")
@@ -90,6 +95,8 @@ def rows_measured(rows_file: Path, meta_file: Path, key: str) -> bool:
         return False
     if "rows_sha256" in meta:
         return hashlib.sha256(data).hexdigest() == meta["rows_sha256"]
+    import pandas as pd
+
     try:
         check_rows(pd.read_csv(rows_file, float_precision="round_trip"), rows_file)
     except (SigmarlError, ValueError):  # pandas' parser errors are ValueErrors
