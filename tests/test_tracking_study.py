@@ -149,3 +149,55 @@ def test_mlflow_ui_lists_the_study_and_compares_its_variants_in_chromium(critic_
     finally:
         os.killpg(server.pid, signal.SIGTERM)
         server.wait(timeout=30)
+
+
+def test_the_description_keeps_every_variant_a_sweep_added(tmp_path):
+    """A command-line sweep's variants join the description (never "2 variant(s)" after more
+    were run), and a later sweep's join those recorded before."""
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    cfg = compose_config(["study=critic", f"tracking.tracking_uri={uri}"])
+    client = connect(cfg)
+    with study_run(client, cfg, {"MAPPO_max_speed-0.6": ["obs=full", "env.vehicle.max_speed=0.6"]}):
+        pass
+    with study_run(client, cfg, {"MAPPO_max_speed-0.7": ["obs=full", "env.vehicle.max_speed=0.7"]}):
+        pass
+    note = MlflowClient(tracking_uri=uri).get_experiment_by_name("sigmarl-critic").tags["mlflow.note.content"]
+    assert note.startswith("**Study critic**: 4 variant(s), baseline **MAPPO**")
+    assert "- MAPPO_max_speed-0.6: `obs=full env.vehicle.max_speed=0.6` (added by a command-line sweep)" in note
+    assert "- MAPPO_max_speed-0.7: `obs=full env.vehicle.max_speed=0.7` (added by a command-line sweep)" in note
+
+
+def test_a_report_run_is_named_by_what_it_compares():
+    from sigmarl.tracking.records import report_name
+
+    tags = {"baseline": "M0", "models": "M0,M1,M4", "scenarios": "CPM,Roundabout"}
+    assert report_name("sigmarl-ablation", tags) == "report sigmarl-ablation: M0 vs M1,M4 on CPM,Roundabout"
+    assert report_name("x", {**tags, "baseline": "M3", "models": "M3"}) == "report x: M3 alone on CPM,Roundabout"
+    many = {**tags, "scenarios": ",".join(f"S{i}" for i in range(12))}
+    assert report_name("x", many) == "report x: M0 vs M1,M4 on 12 scenarios"
+    assert len(report_name("x", {**tags, "models": ",".join(f"V{i}" for i in range(99))})) == 200
+
+
+@pytest.mark.slow
+def test_report_runs_carry_what_tells_them_apart_and_evaluate_twice_is_one_run(critic_store, tmp_path):
+    tmp, _ = critic_store
+    copy = tmp_path / "copy"
+    shutil.copytree(tmp, copy)
+    uri = f"sqlite:///{copy}/mlflow.db"
+    assert main(["report", "study=critic", "study.scenarios=[Intersection]", "study.baseline=IPPO",
+                 f"tracking.tracking_uri={uri}", f"runs_root={copy}/runs", "--no-figures",
+                 "--out", str(copy / "other")]) == 0
+    client = MlflowClient(tracking_uri=uri)
+    exp = client.get_experiment_by_name("sigmarl-critic").experiment_id
+    reports = {r.info.run_name: r.data.params for r in client.search_runs([exp], "tags.kind = 'report'")}
+    assert reports["report sigmarl-critic: MAPPO vs IPPO on Intersection"]["baseline"] == "MAPPO"
+    assert reports["report sigmarl-critic: IPPO vs MAPPO on Intersection"]["models"] == "MAPPO,IPPO"
+    # a lone evaluate, twice: one evaluation run of the training run, nested under it, in its experiment
+    protocol = ["eval.n_sims=2", "eval.steps=20", "eval.scenarios=[Intersection]", f"tracking.tracking_uri={uri}"]
+    for _ in range(2):
+        assert main(["evaluate", str(copy / "runs" / "MAPPO" / "seed0"), *protocol]) == 0
+    training = client.search_runs([exp], "tags.kind = 'training' and tags.model = 'MAPPO'")[0]
+    (evaluation,) = client.search_runs([exp], f"tags.kind = 'evaluation' and tags.train_run_id = "
+                                              f"'{training.info.run_id}'")
+    assert evaluation.data.tags["mlflow.parentRunId"] == training.info.run_id
+    assert evaluation.data.metrics and all(v == round(v, 2) for v in evaluation.data.metrics.values())

@@ -82,15 +82,15 @@ def cmd_train(args: argparse.Namespace) -> None:
 def cmd_evaluate(args: argparse.Namespace) -> None:
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config
-    from sigmarl.evaluation.target import check_evaluate_overrides, resolve_checkpoint
+    from sigmarl.evaluation import target
 
-    check_evaluate_overrides(args.overrides)
+    target.check_evaluate_overrides(args.overrides)
     for name in args.scenario or ():  # a wrong name is answered before Hydra, in well under a second
         scenario(name)
     cfg = compose_config(args.overrides)
     if args.scenario:
         cfg.eval.scenarios = list(args.scenario)
-    path = resolve_checkpoint(args.target, cfg)  # a wrong path is answered before torch is imported
+    path = target.into_its_experiment(target.resolve_checkpoint(args.target, cfg), cfg, args.overrides)  # no torch yet
     use_threads(cfg.threads)
     from sigmarl.evaluation.protocol import evaluate_and_log, rows_file_for
     from sigmarl.metrics import scaled, units_text

@@ -51,6 +51,7 @@ METRICS: tuple[Metric, ...] = (
            "mean speed over all agent-steps"),
 )
 BY_NAME = {m.name: m for m in METRICS}
+TABLE_DIGITS = 2  # decimals of every table cell, in the table's units (and of the metrics MLflow shows)
 METRIC_COLUMNS = [m.name for m in METRICS]  # the evaluation rows' metric columns, in table order
 COLLISION_COLUMNS = tuple(m.name for m in METRICS if m.collision)
 COMPOSITE = {m.name: float(m.composite) for m in METRICS if m.composite}

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
+from sigmarl.readers import read_run_config
 from sigmarl.run import Run, checkpoint_name
 
 # What `sigmarl evaluate` takes from the command line: the protocol, the store, where it runs, and
@@ -56,3 +57,13 @@ def resolve_checkpoint(target: str, cfg: Config, download_dir: Path | None = Non
     name = checkpoint_name(cfg.eval.checkpoint)
     out = download_dir or Path(tempfile.mkdtemp(prefix="sigmarl-ckpt-"))
     return records.training_checkpoint(connect(cfg, write=False), target, name, out)
+
+
+def into_its_experiment(path: Path, cfg: Config, overrides: list[str]) -> Path:
+    """Log the evaluation of a run folder's checkpoint into the experiment it was trained in
+    (where MLflow nests it under its training run), unless the command line chose one."""
+    chosen = any(o.lstrip("+~").split("=", 1)[0].strip() in ("tracking.experiment", "study") for o in overrides)
+    run = Run(path.resolve().parent)
+    if not chosen and run.config_file.is_file():
+        cfg.tracking.experiment = read_run_config(run.config_file).tracking.experiment
+    return path

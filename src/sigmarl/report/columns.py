@@ -61,9 +61,12 @@ def check_columns(rows: pd.DataFrame, expected: dict[str, Config], partial: bool
         groups[(label, seed, other)] = (own, _changes(own, expected[label], other))
     signatures = Counter(changes for _, changes in groups.values())
     shared = frozenset() if frozenset() in signatures else (signatures.most_common(1)[0][0] if signatures else None)
-    # changes count as the study's command line only where two columns or more share them: a
-    # lone column trained otherwise (a quick M0 in the paper study's store) shows nothing shared
-    if shared and len({label for (label, _, _), (_, changes) in groups.items() if changes == shared}) < 2:
+    # changes count as the study's command line where two columns or more share them, or where
+    # the runs were trained in this very study; a lone column of another study's runs (a quick M0
+    # evaluated into the paper study's store) shows nothing shared: it is not the variant
+    having = [(label, own) for (label, _, _), (own, changes) in groups.items() if changes == shared]
+    if shared and len({label for label, _ in having}) < 2 and not all(
+            own is not None and own.study.name == expected[label].study.name for label, own in having):
         shared = None
     lines, bad = [], pd.Series(False, index=rows.index)
     for (label, seed, other), (own, changes) in groups.items():

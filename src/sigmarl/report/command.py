@@ -73,8 +73,17 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
                     lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options, notes, configs)
     tracker.log_report(report.composite, report.paths.values(), {
         "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
+        **what_it_reports(report, cfg, options),
     })
     return report
+
+
+def what_it_reports(report: Report, cfg: Config, options: ReportOptions) -> dict[str, str]:
+    """What tells one report run from another of the same experiment: its baseline, columns,
+    scenarios and metrics, and the command line it was given (tags and params of the run)."""
+    return {"baseline": cfg.study.baseline, "models": ",".join(report.table.models),
+            "scenarios": ",".join(report.table.scenarios), "metrics": ",".join(cfg.study.metrics),
+            "overrides": " ".join(options.overrides)}
 
 
 def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path | None = None,
@@ -101,7 +110,7 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
                     options, extra_notes=[*results.notes, *notes], configs=configs)
     tracker.log_report(report.composite, report.paths.values(),
-                       {"source": ",".join(str(r.resolve()) for r in roots)},
+                       {"source": ",".join(str(r.resolve()) for r in roots), **what_it_reports(report, cfg, options)},
                        source=",".join(str(r) for r in roots))
     return report
 

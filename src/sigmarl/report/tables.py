@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-from sigmarl.metrics import LOWER_IS_BETTER, METRIC_COLUMNS, UNITS, label
+from sigmarl.metrics import LOWER_IS_BETTER, METRIC_COLUMNS, TABLE_DIGITS, UNITS, label
 
 ROW_METRICS = [*METRIC_COLUMNS, "CS"]
-DIGITS = 2
+DIGITS = TABLE_DIGITS
 # how the baseline collides and drives, under each matrix
 BASELINE_PARTS = ("CR_AA", "CR_AL", "CD", "AS")
 MISSING = "–"

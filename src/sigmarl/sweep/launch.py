@@ -52,7 +52,8 @@ def launch(plan: SweepPlan) -> int:
     argv = sys.argv
     sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override(), *sweep_owner_override()]
     try:
-        with tracker.study() if tracker is not None else nullcontext(), _launcher_errors_raised():
+        added = {j.label: j.variant for j in plan.jobs if j.label not in plan.study.variants}
+        with tracker.study(added) if tracker is not None else nullcontext(), _launcher_errors_raised():
             main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
             main()
     except BaseException as e:

@@ -32,8 +32,8 @@ class MlflowTracker(Tracker):
             self._experiment_id = experiment_id(self.client, self.experiment, create=True)
         return self._experiment_id
 
-    def study(self):
-        return study_run(self.client, self.cfg)
+    def study(self, added: dict[str, list[str]] | None = None):
+        return study_run(self.client, self.cfg, added)
 
     def training_run(self, run_id: str | None = None, reopen: bool = True) -> TrainingRun:
         return MlflowTrainingRun.open(self.cfg, self.client, run_id, reopen)

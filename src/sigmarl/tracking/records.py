@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 from sigmarl import crash
 from sigmarl.ablation import TIMINGS
 from sigmarl.errors import SigmarlError, end_status
-from sigmarl.metrics import METRIC_COLUMNS, METRICS
+from sigmarl.metrics import METRIC_COLUMNS, METRICS, TABLE_DIGITS
 from sigmarl.readers import read_run_config
 from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
 from sigmarl.tracking.store import experiment_id
@@ -59,14 +59,15 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
                    params: dict[str, str]) -> str:
     """One evaluation run: rows as a CSV artifact, per-scenario means as metrics.
 
-    Runs of the same training run and protocol that an earlier, killed attempt left RUNNING
-    (or ended FAILED/KILLED) are deleted first: they hold part of what this run logs.
+    Runs of the same training run and protocol that an earlier attempt left are deleted first:
+    a killed one's (RUNNING, FAILED, KILLED) hold part of what this run logs, and a FINISHED one
+    is what this run replaces (`sigmarl evaluate` twice: one evaluation run).
     """
     # lazy: MLflow (~1 s) and pandas only where a store or rows are used
     from mlflow.entities import Metric, Param
 
     if tags.get("train_run_id"):
-        for status in ("RUNNING", "FAILED", "KILLED"):
+        for status in ("RUNNING", "FAILED", "KILLED", "FINISHED"):
             for old in _evaluations(client, exp_id, tags["train_run_id"], tags["eval_key"], status):
                 client.delete_run(old.info.run_id)
     parent = _parent_tag(client, exp_id, tags.get("train_run_id"))
@@ -76,7 +77,10 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
     with _ended(client, rid):
         means = rows.groupby("scenario")[METRIC_COLUMNS].mean()
         now = int(time.time() * 1000)
-        metrics = [Metric(f"{scenario}/{METRIC_NAMES.get(metric, metric)}", float(value) * METRIC_SCALE.get(metric, 1.0), now, 0)
+        # at the table's precision: a float32 mean's tail (27.500000596046448) is noise, and the
+        # rows artifact keeps every value whole
+        metrics = [Metric(f"{scenario}/{METRIC_NAMES.get(metric, metric)}",
+                          round(float(value) * METRIC_SCALE.get(metric, 1.0), TABLE_DIGITS), now, 0)
                    for scenario, row in means.iterrows() for metric, value in row.items()]
         client.log_batch(rid, metrics=metrics, params=[Param(k, v) for k, v in params.items()])
         crash.point("eval:logging")
@@ -220,19 +224,39 @@ def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable
                tags: dict[str, str], source: str | None = None) -> str:
     """A report run: the table files, figures and composite scores, with what it was built from;
     named after what it reports (`report <experiment>`, or `report <results folder>`)."""
+    from mlflow.entities import Param
+
     exp_id = experiment_id(client, experiment, create=True)
     end_dead_reports(client, exp_id)
     owner = {OWNER_HOST: socket.gethostname(), OWNER_PID: str(os.getpid())}
-    run = client.create_run(exp_id, run_name=f"report {source or experiment}",
+    run = client.create_run(exp_id, run_name=report_name(source or experiment, tags),
                             tags={"kind": "report", **owner, **tags})
     rid = run.info.run_id
     with _ended(client, rid):
+        # what tells report runs apart, as params too: the runs table can show and compare them
+        client.log_batch(rid, params=[Param(k, tags[k][:6000]) for k in REPORT_PARAMS if tags.get(k)])
         for _, r in composite.dropna(subset=["CS"]).iterrows():
-            client.log_metric(rid, f"CS/{r['scenario']}/{r['model']}", float(r["CS"]))
+            client.log_metric(rid, f"CS/{r['scenario']}/{r['model']}", round(float(r["CS"]), TABLE_DIGITS))
         crash.point("report:logging")
         for path in paths:
             client.log_artifact(rid, str(path))
     return rid
+
+
+REPORT_PARAMS = ("baseline", "models", "scenarios", "metrics", "overrides")
+
+
+def report_name(where: str, tags: dict[str, str]) -> str:
+    """`report <experiment>: M0 vs M1,M4 on CPM,Roundabout` (at most 200 characters)."""
+    base, models = tags.get("baseline", ""), [m for m in tags.get("models", "").split(",") if m]
+    scenarios = [s for s in tags.get("scenarios", "").split(",") if s]
+    if not base or not models:
+        return f"report {where}"
+    others = [m for m in models if m != base]
+    what = f"{base} vs {','.join(others)}" if others else f"{base} alone"
+    on = ",".join(scenarios) if len(scenarios) <= 4 else f"{len(scenarios)} scenarios"
+    name = f"report {where}: {what} on {on}"
+    return name if len(name) <= 200 else name[:197] + "..."
 
 
 def end_dead_reports(client, exp_id: str) -> list[str]:

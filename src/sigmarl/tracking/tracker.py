@@ -76,9 +76,10 @@ class Tracker(ABC):
     def __init__(self, cfg: Config) -> None:
         self.cfg = cfg
 
-    def study(self) -> AbstractContextManager[str | None]:
+    def study(self, added: dict[str, list[str]] | None = None) -> AbstractContextManager[str | None]:
         """Around a sweep's jobs: the study's own record, if the tracker keeps one (MLflow: a
-        parent run of its training runs); its id, or None."""
+        parent run of its training runs); its id, or None. `added`: the variants the sweep runs
+        beyond the study's declared ones (label -> overrides), for the study's description."""
         return nullcontext()
 
     @abstractmethod
