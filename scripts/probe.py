@@ -6,6 +6,7 @@ budget, PASS or FAIL per probe (exit code 1 if any fails).
     python scripts/probe.py               # the whole round (about 4 minutes on 2 cores)
     python scripts/probe.py F13 G1 kill9  # the probes named so: an exact name, or its fault (F6: both F6 probes)
     python scripts/probe.py --list F6     # the names a selection runs, without running them
+    python scripts/probe.py --quick       # the probes that train nothing (bad input; a minute)
 
 Each probe checks the property its name promises, not a stand-in: F13 that a NaN optimiser state
 never reaches best.pt, `kill9-resume` that the resumed weights equal an uninterrupted run's.
@@ -23,7 +24,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -68,6 +69,7 @@ class Probe:
     name: str  # "<fault>-<what>" (the fault, e.g. F13, selects every probe of it) or a plain name
     fault: str  # what is done, in words
     check: Callable[[Path], str | None]  # run in the probe's own folder: None, or what is wrong
+    trains: bool = False  # it trains (or evaluates) a model: left out of `--quick`
 
     @property
     def fault_id(self) -> str:
@@ -144,7 +146,8 @@ def all_probes() -> list[Probe]:
     import probe_runs
     import probe_sweeps
 
-    probes = [*probe_input.PROBES, *probe_runs.PROBES, *probe_sweeps.PROBES]
+    # every run-folder and sweep probe trains; of the input probes, only those that say so
+    probes = [*probe_input.PROBES, *(replace(p, trains=True) for p in (*probe_runs.PROBES, *probe_sweeps.PROBES))]
     names = [p.name for p in probes]
     assert len(set(names)) == len(names), "two probes share a name"
     return probes
@@ -170,9 +173,9 @@ def _run_one(probe: Probe, root: Path) -> tuple[Probe, bool, str, float]:
 
 
 def main(argv: list[str]) -> int:
-    listing = "--list" in argv
-    words = [w for w in argv if w != "--list"]
-    chosen = select(all_probes(), words)
+    listing, quick = "--list" in argv, "--quick" in argv
+    words = [w for w in argv if w not in ("--list", "--quick")]
+    chosen = [p for p in select(all_probes(), words) if not (quick and p.trains)]
     if listing:
         print("\n".join(p.name for p in chosen))
         return 0

@@ -129,7 +129,7 @@ PROBES = [
     Probe("G8-no-metric", "a seed plan over no metric",
           refusal(["report", *RESULTS, "--plan", "study.metrics=[]"], "study.metrics is empty", fx.results_copy)),
     Probe("G9-evaluate-override", "evaluate with a training override it would drop",
-          _evaluate_whole("obs=no_ego_view")),
+          _evaluate_whole("obs=no_ego_view"), trains=True),
     Probe("G10-experiment-name", "experiment names `.hidden` and `-rf`", _experiment_names),
     Probe("G11-plan-paths", "a seed plan's error names its folders as typed",
           refusal(["report", *RESULTS, "--plan", "--models", "M4"], "from results are M4", fx.results_copy)),

@@ -4,6 +4,7 @@ exact (`F1` is F1's probe, never F11's)."""
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -40,10 +41,16 @@ def test_the_reliability_page_lists_every_probe():
 
 @pytest.mark.slow
 def test_the_probe_round_passes():
-    done = subprocess.run([sys.executable, str(PROBE)], capture_output=True, text=True, timeout=900)
+    """In the suite, the probes that train nothing (about a minute); the whole round (about
+    5 minutes on 2 cores) with SIGMARL_PROBES=all, as before a release."""
+    whole = os.environ.get("SIGMARL_PROBES") == "all"
+    done = subprocess.run([sys.executable, str(PROBE), *([] if whole else ["--quick"])], capture_output=True,
+                          text=True, timeout=900)
     lines = done.stdout.splitlines()
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     assert [line for line in lines if line.startswith("FAIL")] == []
     passed = [line.split()[1] for line in lines if line.startswith("PASS")]
-    assert FAULTS <= {n.split("-")[0] for n in passed}
+    assert len(passed) >= (35 if whole else 15) and "F1-experiment" in passed
+    if whole:
+        assert FAULTS <= {n.split("-")[0] for n in passed}
     assert re.fullmatch(rf"{len(passed)} of {len(passed)} probes passed in \d+ s", lines[-1])
