@@ -74,7 +74,9 @@ def config() -> str:
 
 
 def _key_row(k) -> str:
-    return f"| `{k.key}` | `{_cell(k.type)}` | `{_cell(repr(k.default))}` | {_cell(k.help)} |"
+    from sigmarl.config_help import shown
+
+    return f"| `{k.key}` | `{_cell(k.type)}` | `{_cell(shown(k.default))}` | {_cell(k.help)} |"
 
 
 def run_folder() -> str:

@@ -89,3 +89,11 @@ def test_train_help_lists_every_key(capsys):
         if not k.group:
             assert f"    {k.key}=" in out
     assert "    rules.timeout_terminal=False  Paper: a training time-out is terminal" in out
+
+
+def test_a_computed_float_default_is_shown_as_typed():
+    from sigmarl.config_help import describe, shown
+
+    assert shown(0.15 * 7 / 30) == "0.035" and shown(2e-4) == "0.0002" and shown([256, 256]) == "[256, 256]"
+    assert shown(1e-12) == "1e-12" and shown(True) == "True" and shown("cpm") == "'cpm'"
+    assert "default 0.035)" in describe("env.reward.deviation_scale")

@@ -92,10 +92,20 @@ def describe(query: str) -> str:
     return "\n".join(_line(k) for k in hits)
 
 
+def shown(value: Any) -> str:
+    """A default as a person would type it: a float at 12 significant digits (0.035, never a
+    computed default's binary tail 0.034999999999999996), anything else as its repr."""
+    if isinstance(value, float):
+        return format(value, ".12g") if "e" not in format(value, ".12g") else repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(shown(v) for v in value) + "]"
+    return repr(value)
+
+
 def _line(k: KeyHelp) -> str:
     if k.group:
         return f"{k.key}: {k.help}"
-    return f"{k.key} ({k.type}, default {k.default!r}): {k.help}"
+    return f"{k.key} ({k.type}, default {shown(k.default)}): {k.help}"
 
 
 def keys_epilog(prefix: str = "") -> str:
@@ -103,6 +113,6 @@ def keys_epilog(prefix: str = "") -> str:
     defaults, for `sigmarl evaluate --help`)."""
     what = f"{prefix.rstrip('.')} keys and their defaults" if prefix else "config keys"
     lines = [f"{what} (override as KEY=VALUE; `sigmarl --info KEY` for one key or group):"]
-    lines += [f"  {k.key}: {k.help}" if k.group else f"    {k.key}={k.default!r}  {k.help}"
+    lines += [f"  {k.key}: {k.help}" if k.group else f"    {k.key}={shown(k.default)}  {k.help}"
               for k in key_help() if k.key.startswith(prefix)]
     return "\n".join(lines)
