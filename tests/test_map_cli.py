@@ -107,7 +107,8 @@ def test_a_map_name_in_any_case_and_a_misspelt_one_gets_did_you_mean(tmp_path, m
 
     monkeypatch.chdir(tmp_path)
     assert main(["maps", "show", "Paper_Roundabout"]) == 0
-    assert list(tmp_path.glob("*.png"))  # drawn as paper_roundabout
+    # drawn as paper_roundabout, into the reports folder: nothing loose in the working folder
+    assert [p.relative_to(tmp_path) for p in tmp_path.rglob("*.png")] == [Path("reports/maps/paper_roundabout.png")]
     line = one_line_exit_2(["maps", "show", "roundabot"], capsys)
     assert "unknown map 'roundabot' (did you mean roundabout?)" in line
 

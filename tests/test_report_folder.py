@@ -195,3 +195,15 @@ def test_scenarios_given_restrict_the_report_or_are_refused(tmp_path, capsys, ke
     assert report(tmp_path, "none", "--no-figures", f"{key}=[CPM-30]") == 2
     assert "no evaluation rows of scenario(s) CPM-30" in capsys.readouterr().err
     assert not (tmp_path / "none").exists()
+
+
+def test_a_report_of_other_columns_or_another_baseline_keeps_the_studys_folder(tmp_path, monkeypatch):
+    from sigmarl.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    common = ["report", "--from", str(FIXTURE), "--no-figures", "tracking.enabled=false"]
+    assert main(common) == 0
+    assert main([*common, "study.baseline=M4"]) == 0
+    assert main([*common, "--models", "M4,M0", "study.baseline=M4"]) == 0
+    assert sorted(p.name for p in (tmp_path / "reports").iterdir()) == [
+        "results", "results_baseline-M4", "results_baseline-M4_models-M4+M0"]

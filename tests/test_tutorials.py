@@ -43,7 +43,7 @@ def test_plan_and_seeds_auto(tmp_path):
         assert label in ("M0", "M4") and 2 <= len(seeds) <= 4
         for seed in seeds:
             assert (tmp_path / "runs" / "sigmarl-quick" / label / f"seed{seed}" / "evaluated.txt").exists()
-    assert (tmp_path / "reports" / "sigmarl-quick" / "verdicts.md").exists()
+    assert (tmp_path / "reports" / "sigmarl-quick_models-M0+M4" / "verdicts.md").exists()
 
 
 def test_cluster_on_one_machine(tmp_path):
@@ -52,7 +52,7 @@ def test_cluster_on_one_machine(tmp_path):
     for label in ("M0", "M4"):
         assert (tmp_path / "runs" / "sigmarl-quick" / label / "seed0" / "evaluated.txt").exists()
     assert list((tmp_path / "multirun").rglob("*submitit*")) or list((tmp_path / "multirun").rglob(".submitit"))
-    assert _table(tmp_path / "reports" / "sigmarl-quick" / "table.csv") == ["M0", "M4"]
+    assert _table(tmp_path / "reports" / "sigmarl-quick_models-M0+M4" / "table.csv") == ["M0", "M4"]
 
 
 def test_a_map_of_ones_own(tmp_path):

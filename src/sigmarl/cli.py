@@ -55,11 +55,11 @@ def cmd_maps(args: argparse.Namespace) -> None:
         return
     if not args.map:
         raise SigmarlError("sigmarl maps show needs a map name, e.g. `sigmarl maps show cpm`")
-    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
-    from sigmarl.maps.plot import save_map_figure
+    from sigmarl.maps.plot import save_map_figure  # lazy, as above
 
     m = _resolve_map(args.map, args.overrides)
-    out = Path(args.out or f"{m.name}.png")
+    out = Path(args.out or Path("reports") / "maps" / f"{m.name}.png")
+    out.parent.mkdir(parents=True, exist_ok=True)
     save_map_figure(m, out, show_ids=args.ids)
     print(f"wrote {out}")
 
@@ -331,7 +331,7 @@ def _add_maps(sub) -> None:
     maps = sub.add_parser("maps", help="list road maps or draw one to PNG")
     maps.add_argument("action", choices=["list", "show"])
     maps.add_argument("map", nargs="?", help="map name (see `sigmarl maps list`) or an .osm file")
-    maps.add_argument("--out", help="PNG file to write (default: <map>.png)")
+    maps.add_argument("--out", help="PNG file to write (default: reports/maps/<map>.png)")
     maps.add_argument("--ids", action="store_true", help="label lanelet ids")
     maps.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. map.lane_width=0.25")
     maps.set_defaults(func=cmd_maps)

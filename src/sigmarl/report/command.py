@@ -67,7 +67,7 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     rows = one_config_per_run(rows, list(expected))
     notes = [*wrong, *_coverage(rows, cfg, options, folders, where)]
     curves = records.load_training_curves(client, experiment) if options.figures else None
-    out_dir = out_dir or Path("reports") / experiment
+    out_dir = out_dir or report_folder(experiment, cfg, options)
     configs = _column_configs(rows, lambda rid: records.evaluated_config(client, rid), expected)
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
                     lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options, notes, configs)
@@ -76,6 +76,19 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
         **what_it_reports(report, cfg, options),
     })
     return report
+
+
+def report_folder(name: str, cfg: Config, options: ReportOptions) -> Path:
+    """reports/<name>, or, for a report of other columns or another baseline than the study's,
+    a folder of its own beside it (reports/<name>_baseline-M3_models-M0+M3): another report
+    never overwrites the study's."""
+    parts = []
+    if any(o.lstrip("+").split("=", 1)[0].strip() == "study.baseline" for o in options.overrides):
+        parts.append(f"baseline-{cfg.study.baseline}")
+    if options.models:
+        models = "+".join(options.models)
+        parts.append(f"models-{models if len(models) <= 80 else str(len(options.models)) + '-models'}")
+    return Path("reports") / "_".join([name, *parts])
 
 
 def what_it_reports(report: Report, cfg: Config, options: ReportOptions) -> dict[str, str]:
@@ -100,7 +113,7 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     results = read_results(roots[0]) if len(roots) == 1 else read_many(roots)
     results.rows = only_scenarios(results.rows, options.scenarios, ", ".join(map(str, roots)))
     root = roots[0]
-    out_dir = out_dir or Path("reports") / (root.resolve().name if len(roots) == 1 else cfg.study.name)
+    out_dir = out_dir or report_folder(roots[0].resolve().name if len(roots) == 1 else cfg.study.name, cfg, options)
     curves = results.curves if len(results.curves) else None  # read anyway: training.md needs them
     folders = [(r.label, r.seed, r.path) for r in results.runs]
     # the folders' runs without rows are in the notes already (read_results): only variants never run added
