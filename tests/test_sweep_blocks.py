@@ -112,6 +112,9 @@ def test_a_sweep_of_blocks_trains_evaluates_and_reports_as_lone_jobs(tmp_path):
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stdout.count("trained and evaluated") == 3
+    # sigmarl's own launch line and plain progress lines, not Hydra's `[HYDRA] #0 : ...` job lines
+    assert "[HYDRA]" not in done.stdout + done.stderr and "][INFO] - " not in done.stdout + done.stderr
+    assert "sigmarl sweep: 2 job(s) (M0/seeds0_1, M0/seed2)" in done.stdout
     runs = tmp_path / "runs" / "sigmarl-quick" / "M0"
     lone = runs / "seed2"
     assert not (lone / "block.json").exists()

@@ -165,3 +165,13 @@ def test_one_composition_per_variant_gives_what_each_seed_composed_alone_gives(t
     assert [c.run_dir for c in together] == [f"{tmp_path}/M2/seed3", f"{tmp_path}/M2/seed7"]
     assert [c.eval.seed for c in together] == [3, 7]  # an interpolation of the seed follows it
     assert together == [compose_config([*given, f"seed={s}"]) for s in (3, 7)]
+
+
+def test_the_summary_columns_line_up_however_long_a_variant(tmp_path, capsys):
+    from sigmarl.sweep.launch import summarise
+
+    plan = plan_sweep(["models=[M0,M4]", "seeds=[0,10]", "tracking.enabled=false", f"runs_root={tmp_path}"], cores=2)
+    assert summarise(plan) == 1  # nothing trained: every job unfinished
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("  M")]
+    assert len(rows) == 4 and len({row.index(" seed ") for row in rows}) == 1
+    assert len({row.index("unfinished") for row in rows}) == 1 and len({row.index("[") for row in rows}) == 1

@@ -53,6 +53,10 @@ def launch(plan: SweepPlan) -> int:
     sys.argv = ["sigmarl-sweep", "--multirun", *overrides, sweep_folder_override(), *sweep_owner_override()]
     try:
         added = {j.label: j.variant for j in plan.jobs if j.label not in plan.study.variants}
+        keys = [u.key for u in plan.units]
+        where = f"multirun/{plan.config.tracking.experiment}" if plan.config is not None else "multirun"
+        print(f"sigmarl sweep: {len(keys)} job(s) ({', '.join(keys[:6])}{' ...' if len(keys) > 6 else ''}); "
+              f"each job's log in {where}/<job>/", flush=True)
         with tracker.study(added) if tracker is not None else nullcontext(), _launcher_errors_raised():
             main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
             main()
@@ -180,6 +184,9 @@ def summarise(plan: SweepPlan) -> int:
     """Print each job's state from its run folder; non-zero if any failed or is unfinished."""
     bad = 0
     width = max([len(j.label) for j in plan.jobs] + [6])
+    # each column as wide as its longest entry: a long variant never pushes its row's seed aside
+    variant_width = max([len(" ".join(j.variant)) for j in plan.jobs] + [8])
+    seed_width = max([len(str(j.seed)) for j in plan.jobs] + [1])
     print("\nsweep summary:")
     for name, parent in plan.twins.items():
         print(f"  {name} is {parent}'s training config: its runs are {parent}'s, not trained twice")
@@ -195,7 +202,7 @@ def summarise(plan: SweepPlan) -> int:
             state = "unfinished (run the sweep again to resume)"
             bad += 1
         variant = " ".join(job.variant)
-        print(f"  {job.label:<{width}} {variant:<28} seed {job.seed:<3} {state}   [{run_dir}]")
+        print(f"  {job.label:<{width}}  {variant:<{variant_width}}  seed {job.seed:<{seed_width}}  {state:<21}  [{run_dir}]")
     if not bad:
         print(f"next: {report_hint(plan)}")
     return 1 if bad else 0
