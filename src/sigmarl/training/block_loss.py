@@ -65,10 +65,15 @@ class BlockPPOLoss:
 
     def __call__(self, batch: dict[str, torch.Tensor], idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The summed loss of the seeds' minibatches idx [S, m], and their terms [S, len(TERMS)]."""
-        take = lambda key: batch[key][self.seeds, idx]  # noqa: E731
+        if len(idx) == 1:  # one seed: index its frames alone (cheaper than a gather over seeds)
+            rows = idx[0]
+            take = lambda key: batch[key][:, rows]  # noqa: E731
+        else:
+            take = lambda key: batch[key][self.seeds, idx]  # noqa: E731
         h = self.head
         with self.autocast():
-            out, value = self.actor(take("obs")), self.critic(take("obs"))
+            obs = take("obs")
+            out, value = self.actor(obs), self.critic(obs)
         loc, scale = h.scale_map(out.float())
         value = value.float()
         log_scale = scale.log()
@@ -102,6 +107,8 @@ def clip_grad_norm_per_seed(params: list[torch.Tensor], max_norm: float) -> torc
     gradients scaled by min(1, max_norm / (|g_k| + 1e-6)), |g_k| over all its parameters.
     Returns the seeds' norms [S]."""
     grads = [p.grad for p in params if p.grad is not None]
+    if grads and grads[0].shape[0] == 1:  # one seed: torch's own (fused) clip, the same maths
+        return torch.nn.utils.clip_grad_norm_(params, max_norm).reshape(1)
     norms = torch.stack([torch.linalg.vector_norm(g.flatten(1), 2, dim=1) for g in grads], 1)
     total = torch.linalg.vector_norm(norms, 2, dim=1)
     coef = (max_norm / (total + 1e-6)).clamp(max=1.0)

@@ -11,6 +11,7 @@ of each seed's own Adam (Adam is elementwise).
 from __future__ import annotations
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 from torchrl.modules import MultiAgentMLP
 
@@ -50,10 +51,14 @@ class StackedMLP(nn.Module):
         """[S, *batch, A, D] -> [S, *batch, A, out]."""
         s, *batch, a, d = x.shape
         x = x.reshape(s, -1, a * d) if self.centralised else x.reshape(s, -1, d)
+        params = list(self.params)
         for layer in self.layers:
             if isinstance(layer, tuple):
-                w, b = self.params[layer[0]], self.params[layer[1]]
-                x = torch.baddbmm(b.unsqueeze(1), x, w.transpose(1, 2))
+                w, b = params[layer[0]], params[layer[1]]
+                if s == 1:  # one seed: a plain linear layer (cheaper backward than a batch of one)
+                    x = F.linear(x, w.view(w.shape[1:]), b.view(b.shape[1:]))
+                else:
+                    x = torch.baddbmm(b.unsqueeze(1), x, w.transpose(1, 2))
             else:
                 x = layer(x)
         if self.centralised:  # one value per state, shared by the agents
