@@ -1,13 +1,13 @@
-"""Seed blocks against lone runs: the per-seed time of a training iteration, in one process.
+"""Seed blocks against one seed: the per-seed time of a training iteration, in one process.
 
-A block of S seeds (`sigmarl train seeds=[...]`, `training.block.BlockLearner`) trains S seeds of
-one config as one batched computation; the lone run (`training.lone.LoneLearner`) trains one.
-Both are built here, in this process, at the paper's settings (32 envs x 128 steps per seed, 8
-minibatches of 512, the paper's network), and timed iteration by iteration through their own
-`iterate()`, the code `sigmarl train` runs. Each block size is measured beside lone iterations
-(lone, block, lone, block, ...), so load from other processes hits both alike; the ratio per
-seed is (block seconds / S) / (lone seconds): 1.00 means a block seed costs what a lone seed
-costs, 0.25 a quarter of it.
+A block of S seeds (`sigmarl train seeds=[...]`, `training.learner.Learner`) trains S seeds of
+one config as one batched computation; one seed (`sigmarl train seed=0`) is a block of one, the
+baseline ("one seed"; the JSON keys `lone_*`). Both are built here, in this process, at the
+paper's settings (32 envs x 128 steps per seed, 8 minibatches of 512, the paper's network), and
+timed iteration by iteration through their own `iterate()`, the code `sigmarl train` runs. Each
+block size is measured beside iterations of one seed (one, block, one, block, ...), so load from
+other processes hits both alike; the ratio per seed is (block seconds / S) / (one seed's
+seconds): 1.00 means a block seed costs what a seed alone costs, 0.25 a quarter of it.
 
 To keep the run short the optimisation runs `--epochs` epochs (default 3) and is scaled to the
 configured ppo.epochs (60): iteration = collection + GAE + optimisation x 60 / epochs, each
@@ -41,8 +41,7 @@ import torch
 
 from sigmarl.compose import compose_config
 from sigmarl.config import PPOConfig
-from sigmarl.training.block import BlockLearner
-from sigmarl.training.lone import LoneLearner
+from sigmarl.training.learner import Learner
 from sigmarl.training.loop import learning_rate
 
 PAPER_ITERATIONS = PPOConfig().iterations  # the budget model-seeds per hour are counted at
@@ -109,11 +108,11 @@ class Timer:
 
 
 def measure_size(base, lone: Timer, size: int, args, device: torch.device) -> dict:
-    """Iterations of a block of `size` seeds, each beside one lone iteration."""
+    """Iterations of a block of `size` seeds, each beside one iteration of one seed."""
     if device.type == "cuda":
         torch.cuda.empty_cache()
         torch.cuda.reset_peak_memory_stats(device)
-    learner = BlockLearner(base, list(range(size)), device)
+    learner = Learner(base, list(range(size)), device)
     try:
         block = Timer(learner, base, args.epochs, device)
         alone = []
@@ -134,15 +133,15 @@ def measure_size(base, lone: Timer, size: int, args, device: torch.device) -> di
 
 
 def table(result: dict) -> str:
-    """The results as a markdown table: each block size against the lone iterations measured
-    beside it; the lone row is the median of all of them (1.00 by definition)."""
+    """The results as a markdown table: each block size against the iterations of one seed
+    measured beside it; the "one seed" row is the median of all of them (1.00 by definition)."""
     cuda = result["device_type"] == "cuda"
-    head = ["S", "s per iteration", "s per seed-iteration", "lone beside it, s", "per seed vs lone",
+    head = ["S", "s per iteration", "s per seed-iteration", "one seed beside it, s", "per seed vs one",
             "model-seeds per hour"] + (["peak memory (GiB)"] if cuda else [])
     lines = ["| " + " | ".join(head) + " |", "|" + "---:|" * len(head)]
     lone = result.get("lone_s_per_iteration")
     if lone:
-        cells = ["lone", f"{lone:.2f}", f"{lone:.2f}", f"{lone:.2f}", "1.00",
+        cells = ["one seed", f"{lone:.2f}", f"{lone:.2f}", f"{lone:.2f}", "1.00",
                  f"{3600 / (result['paper_iterations'] * lone):.2f}"]
         lines.append("| " + " | ".join(cells + ([f"{result['lone_peak_memory_gib']:.2f}"] if cuda else [])) + " |")
     for row in result["rows"]:
@@ -190,7 +189,7 @@ def run(args) -> dict:
     start = time.perf_counter()
     if device.type == "cuda":
         torch.cuda.reset_peak_memory_stats(device)
-    lone = Timer(LoneLearner(cfg, device), cfg, args.epochs, device)
+    lone = Timer(Learner(cfg, [cfg.seed], device), cfg, args.epochs, device)  # one seed
     lone.measure()
     if device.type == "cuda":
         result["lone_peak_memory_gib"] = torch.cuda.max_memory_allocated(device) / 2**30

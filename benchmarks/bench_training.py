@@ -31,12 +31,11 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 
 from sigmarl.compose import compose_config
-from sigmarl.training.block import BlockLearner
-from sigmarl.training.lone import LoneLearner
+from sigmarl.training.learner import Learner
 from sigmarl.training.loop import learning_rate
 from sigmarl.training.mappo import collect, update
 from sigmarl.training.networks import ACTION, OBS
-from sigmarl.training.ppo_loss import LeanPPOLoss, cpu_has_native_bf16
+from sigmarl.training.ppo_loss import PPOLoss, cpu_has_native_bf16
 
 
 def _mlp(n_in: int, hidden: list[int], n_out: int) -> nn.Sequential:
@@ -128,7 +127,7 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
     processes on the machine hits both alike.
     """
     ppo = cfg.ppo
-    parts = LoneLearner(cfg, torch.device("cpu"))
+    parts = Learner(cfg, [cfg.seed], torch.device("cpu"))  # one seed: what `sigmarl train seed=0` runs
     env = parts.env
     steps = ppo.frames_per_iteration // ppo.num_envs
     one = replace(cfg.ppo, epochs=1)
@@ -143,17 +142,17 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
         rows.setdefault(name, []).append((clock.wall * factor, clock.cpu * factor))
 
     for r in range(repeats):
-        env.set_seed(r)
+        parts.reseed(r)
         with _Clock() as col:
             data = collect(batches)
         # the environment's share: the same seed and the recorded actions replay the very same
         # trajectories (same resets) through the env, without policy or collector
-        env.set_seed(r)
+        parts.reseed(r)
         with _Clock() as env_only, torch.no_grad():
             env.rollout(steps, _Replay(data["agents", "action"]), auto_reset=True,
                         break_when_any_done=False)
-        with _Clock() as adv, torch.no_grad():
-            parts.gae(data)
+        with _Clock() as adv:
+            parts.advantage(data)
         obs = data["agents", "observation"].reshape(-1, *data["agents", "observation"].shape[-2:])
         floor = Floor(obs, parts.dims["action_high"], list(cfg.network.hidden), ppo)
         update(data, parts.loss, parts.optimiser, one)  # warm-up
@@ -173,7 +172,7 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
         add("floor", bare, scale)
     if compare_rollout:  # the alternative to the collector: EnvBase.rollout (stacks at the end)
         for r in range(repeats):
-            env.set_seed(r)
+            parts.reseed(r)
             with _Clock() as c, torch.no_grad():
                 env.rollout(steps, parts.collector.policy, auto_reset=True, break_when_any_done=False)
             add("collect_rollout", c)
@@ -184,15 +183,14 @@ def measure(cfg, epochs: int, repeats: int, compare_rollout: bool) -> dict[str, 
 def measure_precision(cfg, epochs: int) -> dict[str, float]:
     """CPU seconds of `epochs` PPO epochs in fp32 and in bf16, run alternately on one thread."""
     torch.set_num_threads(1)
-    parts = LoneLearner(cfg, torch.device("cpu"))
-    data = collect(iter(parts.collector))
-    with torch.no_grad():
-        parts.gae(data)
+    parts = Learner(cfg, [cfg.seed], torch.device("cpu"))
+    parts.reseed(0)
+    data = parts.advantage(collect(parts.batches))
     one = replace(cfg.ppo, epochs=1)
     losses = {}
     for precision in ("fp32", "bf16"):
         ppo = replace(cfg.ppo, precision=precision)
-        losses[precision] = LeanPPOLoss(parts.actor, parts.critic, ppo)
+        losses[precision] = PPOLoss(parts.head, parts.actor, parts.critic, ppo, precision, parts.streams)
         update(data, losses[precision], parts.optimiser, one)  # warm-up
     cpu = dict.fromkeys(losses, 0.0)
     for _ in range(epochs):
@@ -202,35 +200,6 @@ def measure_precision(cfg, epochs: int) -> dict[str, float]:
             cpu[precision] += c.cpu
     parts.close()
     return cpu
-
-
-def _iteration_seconds(learner, cfg, it: int, epochs: int) -> float:
-    """CPU seconds of one `iterate()` at `epochs` epochs, the optimisation scaled to ppo.epochs
-    (the phases split in the proportions of their wall times)."""
-    learner.cfg = replace(cfg, ppo=replace(cfg.ppo, epochs=epochs))
-    learner.reseed(it)
-    learner.set_lr(learning_rate(cfg.ppo, it))
-    c = time.process_time()
-    _, ph = learner.iterate()
-    cpu = time.process_time() - c
-    return cpu * (ph["collect"] + ph["advantage"] + ph["optimise"] * cfg.ppo.epochs / epochs) / ph["total"]
-
-
-def measure_block_of_one(cfg, epochs: int, repeats: int) -> dict[str, float]:
-    """Median CPU seconds per iteration (one thread) of the lone learner and of a seed block of
-    one, built side by side in this process and run in turn (lone, block, lone, ...)."""
-    torch.set_num_threads(1)
-    learners = {"lone": LoneLearner(cfg, torch.device("cpu")),
-                "block S=1": BlockLearner(cfg, [cfg.seed], torch.device("cpu"))}
-    seconds: dict[str, list[float]] = {k: [] for k in learners}
-    for name, learner in learners.items():
-        _iteration_seconds(learner, cfg, 0, 1)  # warm-up, not counted
-    for r in range(repeats):
-        for name, learner in learners.items():
-            seconds[name].append(_iteration_seconds(learner, cfg, r + 1, epochs))
-    for learner in learners.values():
-        learner.close()
-    return {k: statistics.median(v) for k, v in seconds.items()}
 
 
 def _cpu_name() -> str:
@@ -264,19 +233,9 @@ def main() -> None:
     p.add_argument("--precision-epochs", type=int, default=10,
                    help="epochs per precision in the fp32/bf16 comparison (0: skip it)")
     p.add_argument("--only-precision", action="store_true", help="run only the fp32/bf16 comparison")
-    p.add_argument("--block-of-one", type=int, default=0, metavar="N",
-                   help="only compare the lone learner with a seed block of one, N iterations each")
     p.add_argument("overrides", nargs="*", default=[], help="Hydra overrides (default: paper)")
     args = p.parse_args()
     cfg = compose_config(["tracking.enabled=false", *args.overrides])
-    if args.block_of_one:
-        m = measure_block_of_one(cfg, args.epochs, args.block_of_one)
-        print(f"lone vs block of one: CPU seconds per iteration, one thread, median of {args.block_of_one}, "
-              f"optimisation over {args.epochs} epochs scaled to {cfg.ppo.epochs}")
-        for name, seconds in m.items():
-            print(f"  {name:<10}{seconds:7.3f}")
-        print(f"  block S=1 / lone   x{m['block S=1'] / m['lone']:.4f}")
-        return
     if args.only_precision:
         report_precision(cfg, max(args.precision_epochs, 1))
         return

@@ -23,16 +23,16 @@ def _bench():
     return module
 
 
-def test_the_table_reads_per_seed_costs_against_the_lone_run() -> None:
-    # lone 2 s an iteration; a block of 4 at 4 s: 1 s per seed-iteration, half a lone seed's;
-    # at 250 iterations: lone 3600 / 500 = 7.2 model-seeds per hour, the block 4 x 3600 / 1000
+def test_the_table_reads_per_seed_costs_against_one_seed() -> None:
+    # one seed 2 s an iteration; a block of 4 at 4 s: 1 s per seed-iteration, half a seed alone;
+    # at 250 iterations: one seed 3600 / 500 = 7.2 model-seeds per hour, the block 4 x 3600 / 1000
     result = {"device_type": "cpu", "paper_iterations": 250, "lone_s_per_iteration": 2.0,
               "rows": [{"S": 4, "s_per_iteration": 4.0, "s_per_seed_iteration": 1.0, "lone_s_per_iteration": 2.0,
                         "ratio_per_seed": 0.5, "model_seeds_per_hour": 14.4}, {"S": 8, "skipped": "out of memory"}]}
     lines = _bench().table(result).splitlines()
-    assert lines[0] == ("| S | s per iteration | s per seed-iteration | lone beside it, s | per seed vs lone "
+    assert lines[0] == ("| S | s per iteration | s per seed-iteration | one seed beside it, s | per seed vs one "
                         "| model-seeds per hour |")
-    assert lines[2] == "| lone | 2.00 | 2.00 | 2.00 | 1.00 | 7.20 |"
+    assert lines[2] == "| one seed | 2.00 | 2.00 | 2.00 | 1.00 | 7.20 |"
     assert lines[3] == "| 4 | 4.00 | 1.000 | 2.00 | 0.50 | 14.40 |"
     assert lines[4].startswith("| 8 | out of memory |")
 
@@ -46,14 +46,14 @@ def test_a_block_size_is_skipped_when_it_would_end_past_the_time_limit() -> None
 
 
 @pytest.mark.slow
-def test_the_script_times_a_lone_run_and_blocks_of_one_and_two(tmp_path) -> None:
+def test_the_script_times_one_seed_and_blocks_of_one_and_two(tmp_path) -> None:
     out = tmp_path / "bench.json"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.run([sys.executable, str(SCRIPT), "--sizes", "1", "2", "--iterations", "1", "--json", str(out),
                            "ppo=smoke"], capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     table = [line for line in proc.stdout.splitlines() if line.startswith("| ")]
-    assert [line.split("|")[1].strip() for line in table] == ["S", "lone", "1", "2"]
+    assert [line.split("|")[1].strip() for line in table] == ["S", "one seed", "1", "2"]
     result = json.loads(out.read_text())
     assert [r["S"] for r in result["rows"]] == [1, 2]
     for r in result["rows"]:

@@ -1,9 +1,10 @@
 """Seed blocks: S seeds of one training config trained in one process as one batched
-computation compute what S lone runs compute, keep their seeds apart, write a lone run's
-records, and resume whole after a kill at any instant.
+computation compute what each seed computes alone (a block of one, `train`), keep their seeds
+apart, write one seed's records each, and resume whole after a kill at any instant. One seed
+trains as the lone path of earlier sigmarl trained it (its committed numbers).
 
-Tolerance of "the same": a block's batched products (`torch.baddbmm`) round differently from a
-lone run's (`addmm`) in the last bits. Measured at the smoke budget after one iteration (8 Adam
+Tolerance of "the same": a block's batched products over S > 1 seeds round differently from a
+block of one's in the last bits. Measured at the smoke budget after one iteration (8 Adam
 steps): all but a handful of each tensor's elements agree to ~1e-8, and those few (where a
 gradient is near zero, so Adam's step m / sqrt(v) turns rounding noise into a step of up to
 lr) by up to ~5e-6. So parameters are compared tensor by tensor in relative Frobenius norm
@@ -28,10 +29,10 @@ from sigmarl.errors import SigmarlError
 from sigmarl.run import BLOCK_FILE, NEXT_RESUME_FILE, RESUME_FILE, Run
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
-from sigmarl.training.block import BlockLearner
-from sigmarl.training.block_loss import block_update, clip_grad_norm_per_seed
-from sigmarl.training.block_record import commit_checkpoints, settle_checkpoints
+from sigmarl.training.learner import Learner
 from sigmarl.training.loop import train, train_block
+from sigmarl.training.mappo import clip_grad_norm_per_seed, update
+from sigmarl.training.records import commit_checkpoints, settle_checkpoints
 
 SMOKE = ["ppo=smoke", "threads=1", "tracking.enabled=false"]
 SEEDS = [0, 1, 2]
@@ -47,7 +48,7 @@ def _weights(path: Path) -> dict[str, torch.Tensor]:
 
 @pytest.fixture(scope="module")
 def one_iteration(tmp_path_factory):
-    """A block of three seeds and the three lone runs, one smoke iteration each."""
+    """A block of three seeds and each seed alone (blocks of one), one smoke iteration each."""
     root = tmp_path_factory.mktemp("blocks")
     stop = [*SMOKE, "ppo.stop_after=1"]
     block = train_block([compose_config([*stop, f"seed={s}", f"run_dir={root}/block/seed{s}"]) for s in SEEDS])
@@ -56,7 +57,7 @@ def one_iteration(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_a_block_seed_learns_what_its_lone_run_learns(one_iteration) -> None:
+def test_a_block_seed_learns_what_it_learns_alone(one_iteration) -> None:
     root, _, _ = one_iteration
     adam_bound = 2e-4 * 2 * 4 * 1.01  # lr x (2 epochs x 4 minibatches): the most Adam moves an element
     for s in SEEDS:
@@ -69,7 +70,7 @@ def test_a_block_seed_learns_what_its_lone_run_learns(one_iteration) -> None:
 
 
 @pytest.mark.slow
-def test_a_block_seed_records_its_lone_runs_metrics(one_iteration) -> None:
+def test_a_block_seed_records_the_metrics_it_records_alone(one_iteration) -> None:
     root, block, lone = one_iteration
     for s, b, a in zip(SEEDS, block, lone, strict=True):
         (_, mine), = metrics_file.read(root / f"block/seed{s}/metrics.csv")
@@ -86,7 +87,7 @@ def test_a_block_seed_records_its_lone_runs_metrics(one_iteration) -> None:
 
 
 @pytest.mark.slow
-def test_a_block_seed_folder_is_a_lone_runs_folder_plus_its_block(one_iteration) -> None:
+def test_a_block_seed_folder_is_its_folder_alone_plus_its_block(one_iteration) -> None:
     root, _, _ = one_iteration
     for s in SEEDS:
         block, lone = root / f"block/seed{s}", root / f"lone/seed{s}"
@@ -99,32 +100,20 @@ def test_a_block_seed_folder_is_a_lone_runs_folder_plus_its_block(one_iteration)
             assert torch.equal(mine["optimizer"]["state"][i]["step"], st["step"])
             for key in ("exp_avg", "exp_avg_sq"):
                 assert float((mine["optimizer"]["state"][i][key] - st[key]).norm()) <= 1e-4 * float(st[key].norm()) + 1e-12
-        # the config a block seed records is its lone run's (seed and folder aside)
+        # the config a block seed records is the one it records alone (seed and folder aside)
         assert mine["config"]["seed"] == s and mine["config"]["ppo"] == alone["config"]["ppo"]
 
 
 @pytest.fixture(scope="module")
 def learner():
     cfg = compose_config([*SMOKE, "ppo.num_envs=4", "ppo.frames_per_iteration=64", "ppo.minibatch_size=32"])
-    block = BlockLearner(cfg, SEEDS, torch.device("cpu"))
+    block = Learner(cfg, SEEDS, torch.device("cpu"))
     block.reseed(0)
-    data = _rollout(block)
+    from sigmarl.training.mappo import collect
+
+    data = block.advantage(collect(block.batches))
     yield block, data
     block.close()
-
-
-def _rollout(block):
-    from sigmarl.training.mappo import collect
-    from sigmarl.training.networks import OBS, VALUE
-    from sigmarl.training.stacked import per_seed
-
-    data = collect(block.batches)
-    with torch.no_grad():
-        value = per_seed(block.critic, len(SEEDS))
-        data.set(VALUE, value(data.get(OBS)))
-        data.set(("next", *VALUE), value(data.get(("next", *OBS))))
-        block.gae(data)
-    return data
 
 
 def _update_from(block, data, start_params, start_opt):
@@ -133,7 +122,7 @@ def _update_from(block, data, start_params, start_opt):
             p.copy_(q)
     block.optimiser.load_state_dict(start_opt)
     block.streams.seed([7, 8, 9])
-    block_update(data, block.loss, block.optimiser, block.cfg.ppo)
+    update(data, block.loss, block.optimiser, block.cfg.ppo)
     return [p.detach().clone() for p in block.optimiser.param_groups[0]["params"]]
 
 
@@ -162,6 +151,31 @@ def test_each_seed_is_clipped_by_its_own_gradient_norm() -> None:
     norms = clip_grad_norm_per_seed([w], 1.0)
     assert torch.allclose(norms, torch.tensor([5.0, 0.5]))
     assert torch.allclose(w.grad, torch.tensor([[0.6, 0.8, 0.0], [0.3, 0.0, 0.4]]), atol=1e-6)
+
+
+def test_one_seed_trains_as_the_lone_path_trained_it(tmp_path) -> None:
+    """Seed 0 at the smoke budget against the numbers the former lone path (one seed, torchrl's
+    modules, torch's global generator) recorded: tests/data/lone_smoke_seed0.json. On the
+    machine that made them every value and weight is equal bit for bit; the tolerances are
+    those above, for other kernels on other machines."""
+    ref = json.loads((Path(__file__).parent / "data" / "lone_smoke_seed0.json").read_text())
+    train(compose_config([*SMOKE, "seed=0", f"run_dir={tmp_path}/run"]))
+    rows = metrics_file.read(tmp_path / "run/metrics.csv")
+    assert [it for it, _ in rows] == [r["iteration"] for r in ref["metrics"]] == [1, 2, 3]
+    for (it, got), want in zip(rows, ref["metrics"], strict=True):
+        for name, value in want.items():
+            if name in ROLLOUT and it == 1:
+                assert got[name] == value, name  # the first rollout: the same initial weights, spawns, actions
+            elif name != "iteration":
+                assert math.isclose(got[name], value, rel_tol=1e-5, abs_tol=1e-9), (it, name)
+    weights = _weights(tmp_path / f"run/{RESUME_FILE}")
+    assert weights.keys() == ref["weights"].keys()
+    adam_bound = 2e-4 * 3 * 2 * 4 * 1.01  # lr x (3 iterations x 2 epochs x 4 minibatches)
+    for key, want in ref["weights"].items():
+        t = weights[key].double()
+        assert math.isclose(float(t.norm()), want["norm"], rel_tol=1e-5), key
+        assert abs(float(t.sum()) - want["sum"]) <= adam_bound * t.numel(), key
+        assert max(abs(a - b) for a, b in zip(t.flatten()[:4].tolist(), want["first"], strict=True)) <= adam_bound
 
 
 # ---- records, refusals and the two-phase commit ----------------------------------------------

@@ -5,7 +5,7 @@ a GPU machine); everywhere else every test here is skipped. Tracking is off (the
 need not carry MLflow): the records checked are the run folders, which a sweep's report reads.
 
 What is checked against what, and how closely:
-- a block of 2 on cuda against the lone cuda run of its seed 0 after one iteration, as
+- a block of 2 on cuda against the cuda run of its seed 0 alone (a block of one) after one iteration, as
   tests/test_blocks.py checks it on the CPU but at 1e-4 relative (cuBLAS' batched and plain
   products may round differently, and Adam turns rounding noise near a zero gradient into a
   step of up to lr);
@@ -39,7 +39,7 @@ def _weights(path) -> dict[str, torch.Tensor]:
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """A lone cuda run of seed 0 and a cuda block of seeds 0 and 1: one iteration, then resumed
+    """A cuda run of seed 0 alone and a cuda block of seeds 0 and 1: one iteration, then resumed
     to the smoke budget's end."""
     root = tmp_path_factory.mktemp("cuda")
     lone, block = root / "lone", root / "block"

@@ -22,7 +22,7 @@ from sigmarl.compose import compose_config
 from sigmarl.env.route_bank import RouteBank
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.maps import load_map, map_config
-from sigmarl.training.lone import LoneLearner
+from sigmarl.training.learner import Learner
 from sigmarl.training.mappo import collect, update
 
 SRC = str(Path(sigmarl.__file__).resolve().parent)
@@ -69,7 +69,7 @@ def parts():
     cfg = compose_config(["tracking.enabled=false", "ppo=smoke", "ppo.num_envs=4",
                           "ppo.frames_per_iteration=256", "ppo.minibatch_size=64",
                           "network.hidden=[16,16]"])
-    built = LoneLearner(cfg, torch.device(cfg.device))
+    built = Learner(cfg, [cfg.seed], torch.device(cfg.device))
     yield cfg, built
     built.close()
 
@@ -77,11 +77,10 @@ def parts():
 def test_no_tensor_of_a_training_iteration_skips_the_device(parts):
     cfg, p = parts
     batches = iter(p.collector)
+    p.reseed(0)  # the generators, seeded per iteration
     audit = FactoryAudit()
     with audit:
-        data = collect(batches)  # env resets (partial and full), steps, the sampler
-        with torch.no_grad():
-            p.gae(data)
+        data = p.advantage(collect(batches))  # env resets (partial and full), steps, the sampler, GAE
         update(data, p.loss, p.optimiser, cfg.ppo)
     assert not sorted(audit.found), "factory calls without device=: " + str(sorted(audit.found))
     assert not sorted(audit.dtypes), "float64 tensors: " + str(sorted(audit.dtypes))
@@ -103,9 +102,10 @@ def test_no_tensor_of_an_evaluation_rollout_skips_the_device(parts):
     """Test-mode rollouts (respawns, metrics on the fly); the scenario's map tables are built
     inside, so the construction-only modules are left to the test above."""
     cfg, p = parts
+    actor, _ = p.networks(0)  # the seed's ProbabilisticActor, as a checkpoint loads it
     audit = FactoryAudit()
     with audit:
-        evaluate_policy(p.actor, cfg, "Roundabout", n_sims=2, steps=30, n_agents=cfg.env.n_agents,
+        evaluate_policy(actor, cfg, "Roundabout", n_sims=2, steps=30, n_agents=cfg.env.n_agents,
                         progress=False)
     assert not sorted(audit.found), "factory calls without device=: " + str(sorted(audit.found))
     assert not sorted(audit.dtypes), "float64 tensors: " + str(sorted(audit.dtypes))

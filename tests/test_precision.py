@@ -9,15 +9,9 @@ import torch
 
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
-from sigmarl.training.lone import LoneLearner
+from sigmarl.training.learner import Learner
 from sigmarl.training.mappo import collect
-from sigmarl.training.ppo_loss import (
-    TERMS,
-    LeanPPOLoss,
-    cpu_has_native_bf16,
-    make_loss,
-    resolve_precision,
-)
+from sigmarl.training.ppo_loss import TERMS, PPOLoss, cpu_has_native_bf16, resolve_precision
 
 # Stated tolerance of a bf16 update against fp32 (bf16 keeps 8 significant bits, relative
 # rounding 2^-9 = 0.2% per operation; three layers of 256 accumulate to about 1%): each loss
@@ -31,27 +25,27 @@ def setup():
     cfg = compose_config(["tracking.enabled=false", "ppo=smoke", "ppo.num_envs=4",
                           "ppo.frames_per_iteration=128", "ppo.entropy_coef=0.01"])
     torch.manual_seed(0)
-    parts = LoneLearner(cfg, torch.device("cpu"))
-    data = collect(iter(parts.collector))
+    parts = Learner(cfg, [cfg.seed], torch.device("cpu"))
+    parts.reseed(0)
+    data = parts.advantage(collect(parts.batches))
     with torch.no_grad():
-        parts.gae(data)
         for p in parts.actor.parameters():  # leave the collecting policy: ratios away from 1
             p.add_(torch.randn_like(p) * 0.05)
     yield cfg, parts, data
     parts.close()
 
 
-def _loss(cfg, parts, precision: str) -> LeanPPOLoss:
-    ppo = replace(cfg.ppo, precision=precision)
-    return LeanPPOLoss(parts.actor, parts.critic, ppo)
+def _loss(cfg, parts, precision: str) -> PPOLoss:
+    return PPOLoss(parts.head, parts.actor, parts.critic, replace(cfg.ppo, precision=precision), precision,
+                   parts.streams)
 
 
 def _terms_and_grads(loss, data, idx, parts):
     batch = loss.prepare(data)
-    torch.manual_seed(3)  # the same entropy noise
-    total, terms = loss(batch, idx)
+    parts.streams.seed([3])  # the same entropy noise
+    total, terms = loss(batch, idx.unsqueeze(0))
     grads = torch.autograd.grad(total, [*parts.actor.parameters(), *parts.critic.parameters()])
-    return terms, torch.cat([g.flatten() for g in grads])
+    return terms[0], torch.cat([g.flatten() for g in grads])
 
 
 def test_bf16_update_agrees_with_fp32(setup):
@@ -70,10 +64,11 @@ def test_log_probabilities_and_ratios_stay_fp32(setup):
     cfg, parts, data = setup
     loss = _loss(cfg, parts, "bf16")
     batch = loss.prepare(data)
-    idx = torch.arange(32)
+    idx = torch.arange(32).unsqueeze(0)  # seed 0's first 32 frames
+    obs = batch["obs"][loss.seeds, idx]
     with loss.autocast():  # inside the autocast region the MLP itself computes in bf16
-        assert loss.head.net(batch["obs"][idx]).dtype == torch.bfloat16
-    loc, scale, value = loss.networks(batch["obs"][idx])
+        assert loss.actor(obs).dtype == torch.bfloat16
+    loc, scale, value = loss.networks(obs)
     assert loc.dtype == scale.dtype == value.dtype == torch.float32
     log_weight = loss.log_weight(batch, idx, loc, scale)
     assert log_weight.dtype == torch.float32 and log_weight.exp().dtype == torch.float32
@@ -86,8 +81,9 @@ def test_precision_choice():
 
     assert resolved("ppo.precision=fp32") == "fp32" and resolved("ppo.precision=bf16") == "bf16"
     assert resolved("ppo.precision=auto") == ("bf16" if cpu_has_native_bf16() else "fp32")
-    # torchrl's loss would compute log-probabilities in bf16: auto is fp32 there on any machine
-    assert resolved("ppo.precision=auto", "ppo.loss=torchrl") == "fp32"
+    # torchrl's loss (which would compute log-probabilities in bf16) is no choice of training
+    with pytest.raises(SigmarlError, match="ppo.loss"):
+        compose_config(["ppo.precision=auto", "ppo.loss=torchrl"])
     with pytest.raises(SigmarlError, match="ppo.precision"):
         compose_config(["ppo.precision=fp16"])
     assert compose_config([]).ppo.precision == "fp32"  # the default stays fp32
@@ -97,6 +93,6 @@ def test_the_loss_takes_the_precision_resolved_once(setup):
     # `auto` is resolved by resolve_precision(cfg) alone; the loss never resolves it again
     cfg, parts, _ = setup
     ppo = replace(cfg.ppo, precision="auto")
-    assert make_loss(parts.actor, parts.critic, ppo, "bf16").precision == "bf16"
+    assert PPOLoss(parts.head, parts.actor, parts.critic, ppo, "bf16", parts.streams).precision == "bf16"
     with pytest.raises(ValueError, match="unresolved"):
-        LeanPPOLoss(parts.actor, parts.critic, ppo)
+        PPOLoss(parts.head, parts.actor, parts.critic, ppo, ppo.precision, parts.streams)

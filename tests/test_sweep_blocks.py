@@ -44,13 +44,16 @@ def test_the_default_block_is_chosen_by_device(device, size, tmp_path):
     assert len(plan.units) == -(-70 // size)
 
 
-def test_what_a_block_cannot_batch_is_refused_at_planning(tmp_path):
-    with pytest.raises(SigmarlError, match=r"variant M0: a seed block trains with ppo.loss=lean.*seeds_per_job=1"):
-        plan_sweep(["models=[M0]", "seeds=[0,1]", "sweep.seeds_per_job=2", "ppo.loss=torchrl", OFF,
-                    f"runs_root={tmp_path}"])
-    # one seed per job is a lone run, which may use torchrl's loss
-    assert len(plan_sweep(["models=[M0]", "seeds=[0]", "sweep.seeds_per_job=2", "ppo.loss=torchrl", OFF,
-                           f"runs_root={tmp_path}"]).units) == 1
+def test_what_training_cannot_run_is_refused_at_planning_and_a_critic_per_agent_is_batched(tmp_path):
+    # torchrl's loss is no choice of training, for a block of any size: refused before any job
+    for seeds in ("[0,1]", "[0]"):
+        with pytest.raises(SigmarlError, match="ppo.loss"):
+            plan_sweep(["models=[M0]", f"seeds={seeds}", "sweep.seeds_per_job=2", "ppo.loss=torchrl", OFF,
+                        f"runs_root={tmp_path}"])
+    # a critic head per agent trains in blocks like any other config
+    plan = plan_sweep(["models=[M0]", "seeds=[0,1]", "sweep.seeds_per_job=2", "network.shared_critic_value=false",
+                       OFF, f"runs_root={tmp_path}"])
+    assert [len(u.jobs) for u in plan.units] == [2]
 
 
 def test_a_negative_block_size_is_one_line(tmp_path):

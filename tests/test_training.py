@@ -7,6 +7,7 @@ checkpoints and the MLflow record against them.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -331,3 +332,38 @@ def test_episode_reward_is_summed_per_episode_and_averaged() -> None:
     assert stats["episode_reward_mean"] == pytest.approx(3.0)
     assert stats["episodes"] == 3
     assert stats["train_agent_collision"] == pytest.approx(1 / 6)
+
+
+COMMITTED = Path(__file__).resolve().parents[1] / "results" / "paper-budget" / "M0" / "seed0" / "checkpoint.pt"
+
+
+@pytest.mark.slow
+def test_a_committed_lone_checkpoint_loads_and_trains_on_in_the_one_path() -> None:
+    """results/ holds resume points the former lone path wrote (the torchrl modules' weights, one
+    Adam's state): the learner, alone or as seed 1 of a block, loads one as it is, gives it back
+    bit for bit, and trains on from it (a smaller batch: the weights do not depend on it)."""
+    from sigmarl.training.learner import Learner
+    from sigmarl.training.loop import _load_state
+
+    state = ckpt.load(COMMITTED, resume=True)
+    cfg = ckpt.config_of(state, COMMITTED)
+    small = replace(cfg, ppo=replace(cfg.ppo, num_envs=4, frames_per_iteration=128, minibatch_size=64, epochs=1))
+    for seeds, k in (([cfg.seed], 0), ([cfg.seed + 1, cfg.seed], 1)):
+        learner = Learner(small, seeds, torch.device("cpu"))
+        try:
+            _load_state(learner, k, state, COMMITTED)
+            back = learner.state(k)
+            for part in ("policy", "critic"):
+                assert back[part].keys() == state[part].keys()
+                assert all(torch.equal(back[part][n], t) for n, t in state[part].items()), part
+            assert back["optimizer"]["state"].keys() == state["optimizer"]["state"].keys()
+            for i, st in state["optimizer"]["state"].items():
+                assert all(torch.equal(back["optimizer"]["state"][i][key], st[key]) for key in st), i
+            assert back["optimizer"]["param_groups"][0]["params"] == state["optimizer"]["param_groups"][0]["params"]
+            learner.reseed(state["iteration"])
+            metrics, _ = learner.iterate()
+            assert all(math.isfinite(v) for v in metrics[k].values())
+            moved = learner.state(k)["policy"]
+            assert any(not torch.equal(moved[n], t) for n, t in state["policy"].items())
+        finally:
+            learner.close()

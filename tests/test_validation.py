@@ -58,10 +58,12 @@ def test_a_sweep_refuses_a_bad_value_before_any_mlflow_run(override, tmp_path, c
     assert list(tmp_path.iterdir()) == []  # no mlflow.db (so no FAILED run), no runs/, no multirun/
 
 
-def test_an_explicit_bf16_with_torchrl_loss_is_refused_at_composition():
-    with pytest.raises(SigmarlError, match="needs ppo.loss=lean"):
-        compose_config(["ppo.loss=torchrl", "ppo.precision=bf16"])
-    compose_config(["ppo.loss=torchrl", "ppo.precision=auto"])  # auto resolves to fp32 there
+def test_torchrl_loss_is_refused_at_composition_with_any_precision():
+    # training has one loss (torchrl's ClipPPOLoss is its oracle in tests/test_ppo_loss.py)
+    for precision in ("bf16", "auto", "fp32"):
+        with pytest.raises(SigmarlError, match="ppo.loss='torchrl' is not one of lean"):
+            compose_config(["ppo.loss=torchrl", f"ppo.precision={precision}"])
+    compose_config(["ppo.loss=lean", "ppo.precision=bf16"])
 
 
 def test_the_paper_defaults_and_every_preset_pass():

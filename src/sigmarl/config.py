@@ -164,9 +164,9 @@ class PPOConfig:
     normalize_advantage: bool = False
     """Normalise advantages per minibatch."""
     loss: str = "lean"
-    """lean: the PPO loss on plain tensors | torchrl: torchrl's ClipPPOLoss (same maths, slower)."""
+    """lean: the PPO loss on plain tensors (the one loss; checked against torchrl's ClipPPOLoss in the tests)."""
     precision: str = "fp32"
-    """fp32 | bf16: the update's forward passes under bfloat16 autocast (lean loss) | auto: bf16 where native."""
+    """fp32 | bf16: the update's forward passes under bfloat16 autocast | auto: bf16 where native."""
     # bf16 keeps log-probabilities, ratios, advantages and losses in fp32; auto picks bf16 where
     # the CPU has native bf16 (avx512_bf16 / amx_bf16) or the GPU supports it
     checkpoint_every: int = 5

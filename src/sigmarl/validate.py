@@ -31,7 +31,7 @@ from sigmarl.vehicle_config import check_vehicle
 MapKind = Literal["cpm", "intersection", "on_ramp", "roundabout", "osm"]
 RouteSet = Literal["intersection", "loops"]  # the CPM map's
 Activation = Literal["tanh", "relu", "elu"]
-Loss = Literal["lean", "torchrl"]
+Loss = Literal["lean"]  # one loss; torchrl's ClipPPOLoss is its oracle in the tests
 Precision = Literal["fp32", "bf16", "auto"]
 Checkpoint = Literal["best", "final"]
 DeviceType = Literal["cpu", "cuda"]
@@ -117,15 +117,6 @@ def seeds_per_job(cfg: Config) -> int:
     if cfg.sweep.seeds_per_job:
         return cfg.sweep.seeds_per_job
     return 1 if device_type(cfg.device) == "cpu" else CUDA_SEEDS_PER_JOB
-
-
-def block_refusal(cfg: Config) -> str | None:
-    """Why the seeds of `cfg` cannot train as one block, or None."""
-    if cfg.ppo.loss != "lean":
-        return "a seed block trains with ppo.loss=lean (torchrl's ClipPPOLoss is a lone run's)"
-    if not cfg.network.shared_critic_value:
-        return "a seed block needs network.shared_critic_value=true (a critic head per agent is not batched over seeds)"
-    return None
 
 
 def check_finite(node: object, prefix: str = "") -> None:
@@ -220,11 +211,6 @@ def _check_ppo(cfg: Config) -> None:
                            f"{ppo.frames_per_iteration}")
     choice("ppo.loss", ppo.loss, Loss)
     choice("ppo.precision", ppo.precision, Precision)
-    # ClipPPOLoss would compute log-probabilities in bf16. Only an explicit bf16 is refused
-    # here: what `auto` becomes depends on the machine that trains, resolved there.
-    if ppo.loss == "torchrl" and ppo.precision == "bf16":
-        raise SigmarlError("ppo.precision=bf16 needs ppo.loss=lean (ClipPPOLoss would compute "
-                           "log-probabilities in bf16)")
 
 
 def _check_experiment(name: str) -> None:

@@ -75,7 +75,7 @@ def _train_and_evaluate(cfgs: list[Config], runs: list[Run]) -> str:
         if cfgs[0].study.checkpoints_from:  # a study that evaluates trained runs, not trains them
             return _worst([_one_seed(_evaluate_trained, c, r) for c, r in zip(cfgs, runs, strict=True)])
         trackers = [open_tracker(c) for c in cfgs]  # one connection per seed, for its training and evaluation
-        results = train_block(cfgs, trackers)  # a lone run for one seed
+        results = train_block(cfgs, trackers)  # one seed: a block of one
     except BaseException as e:
         return _worst([_failed(e, r) for r in runs])
     if not all(r.finished for r in results):

@@ -26,7 +26,7 @@ from sigmarl.identity import check_label, differences, fingerprint
 from sigmarl.policy_input import check_variant
 from sigmarl.run import Run
 from sigmarl.sweep.command import Command, override_key, read_command, slug
-from sigmarl.validate import SEED_MAX, block_refusal, check_eval, seeds_per_job
+from sigmarl.validate import SEED_MAX, check_eval, seeds_per_job
 
 
 @dataclass
@@ -83,7 +83,7 @@ def plan_sweep(user: Sequence[str], cores: int | None = None,
         if name in plan.labels:
             continue
         jobs = _variant_jobs(name, [*command.fixed, *own, f"model={name}"], own,
-                             (seeds_by_label or {}).get(name, seeds), size)
+                             (seeds_by_label or {}).get(name, seeds))
         plan.jobs += jobs
         plan.units += _units(jobs, size)
     _check_apart(plan.jobs)
@@ -173,16 +173,13 @@ def _labelled(command: Command, study: StudyConfig,
             yield name, [*variant, *(f"{key}={v}" for key, v in zip(keys, combo, strict=True))], label
 
 
-def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: list[int],
-                  size: int = 1) -> list[Job]:
+def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: list[int]) -> list[Job]:
     """The variant's jobs, one per seed, from one composition; each checked against the run
-    its run folder already holds, and, trained in blocks of `size`, against what a block needs."""
+    its run folder already holds."""
     try:
         configs = compose_seeds(overrides, seeds) if seeds else []
     except SigmarlError as e:
         raise SigmarlError(f"variant {label}: {e}") from e
-    if size > 1 and len(configs) > 1 and (refusal := block_refusal(configs[0])):
-        raise SigmarlError(f"variant {label}: {refusal}; or give sweep.seeds_per_job=1")
     jobs = []
     for seed, cfg in zip(seeds, configs, strict=True):
         check_variant(cfg, check_eval(cfg.eval), label)  # before training, not after it

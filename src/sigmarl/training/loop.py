@@ -1,12 +1,12 @@
 """`train(cfg)` and `train_block(cfgs)`: the MAPPO training loop, checkpointed, resumable,
-tracked in MLflow, for one seed (`lone.LoneLearner`) or a block of seeds of one training config
-trained as one batched computation (`block.BlockLearner`).
+tracked in MLflow, for the seeds of one training config trained as one batched computation
+(`learner.Learner`); one seed is a block of one, and runs the same code.
 
 Exact resume: every iteration starts from a state that depends only on (seed, iteration): the
 generators and the environment are reseeded and every environment is reset. A checkpoint after
 iteration k (weights, optimiser, best reward) is therefore all that iteration k+1 needs, and a
 resumed run ends with the same weights as an uninterrupted one. A block resumes whole, from the
-one iteration its seeds' checkpoints share (`block_record`).
+one iteration its seeds' checkpoints share (`records`).
 """
 
 from __future__ import annotations
@@ -32,12 +32,11 @@ from sigmarl.progress import Progress
 from sigmarl.run import Run
 from sigmarl.tracking import Tracker, flatten, open_tracker
 from sigmarl.training import checkpoint as ckpt
-from sigmarl.training.block_record import commit_checkpoints, settle_checkpoints
-from sigmarl.training.lone import LoneLearner, iteration_seed
+from sigmarl.training.learner import Learner, iteration_seed
 from sigmarl.training.networks import make_actor
 from sigmarl.training.ppo_loss import resolve_precision
-from sigmarl.training.seed_run import SeedRun, finish_records
-from sigmarl.validate import block_refusal, check
+from sigmarl.training.records import SeedRun, commit_checkpoints, finish_records, settle_checkpoints
+from sigmarl.validate import check
 
 __all__ = ["TrainResult", "iteration_seed", "learning_rate", "load_policy", "train", "train_block"]
 
@@ -154,11 +153,10 @@ def train(cfg: Config, tracker: Tracker | None = None) -> TrainResult:
     return train_block([cfg], [tracker] if tracker else None)[0]
 
 
-def train_block(cfgs: Sequence[Config], trackers: Sequence[Tracker] | None = None,
-                batched: bool | None = None) -> list[TrainResult]:
-    """Train the seeds of `cfgs` (one training config, one config per seed) together: a block
-    (batched: one process, one batched computation) where there are several seeds or `batched`
-    says so, else the lone run. Every seed's folder is held for the whole time."""
+def train_block(cfgs: Sequence[Config], trackers: Sequence[Tracker] | None = None) -> list[TrainResult]:
+    """Train the seeds of `cfgs` (one training config, one config per seed) together: one
+    process, one batched computation (one seed: a block of one). Every seed's folder is held
+    for the whole time."""
     cfgs = [check(c) for c in cfgs]  # a no-op for a composed config; one built in code is checked too
     _check_block(cfgs)
     # agents the training map cannot hold are refused before a run folder exists
@@ -168,12 +166,11 @@ def train_block(cfgs: Sequence[Config], trackers: Sequence[Tracker] | None = Non
     with contextlib.ExitStack() as held:
         for c in cfgs:
             held.enter_context(Run(c.run_dir).lock())
-        return _train(cfgs, trackers, len(cfgs) > 1 if batched is None else batched)
+        return _train(cfgs, trackers)
 
 
 def _check_block(cfgs: Sequence[Config]) -> None:
-    """One training config, distinct seeds, distinct folders; what a block cannot batch is
-    refused before anything is built."""
+    """One training config, distinct seeds, distinct folders, refused before anything is built."""
     first = cfgs[0]
     seeds = [c.seed for c in cfgs]
     if len(set(seeds)) != len(seeds):
@@ -182,19 +179,16 @@ def _check_block(cfgs: Sequence[Config]) -> None:
         if c.fingerprint != first.fingerprint or c.model != first.model:
             raise SigmarlError(f"a seed block trains one config; seed {c.seed} differs from seed {first.seed} "
                                f"({differences(first, c) or 'label ' + c.model})")
-    if len(cfgs) > 1 and (refusal := block_refusal(first)):
-        raise SigmarlError(refusal)
 
 
-def _train(cfgs: list[Config], trackers: Sequence[Tracker] | None, batched: bool) -> list[TrainResult]:
+def _train(cfgs: list[Config], trackers: Sequence[Tracker] | None) -> list[TrainResult]:
     first = cfgs[0]
     resolved = resolved_settings(first)
     torch.set_num_threads(first.threads)
     device = _device(first.device)
     folders = [Run(c.run_dir) for c in cfgs]
     check_membership(folders, [c.seed for c in cfgs])
-    if batched:
-        settle_checkpoints(folders)
+    settle_checkpoints(folders)
     states = [_resume_point(c, f, device) for c, f in zip(cfgs, folders, strict=True)]
     for c in cfgs:
         ensure_writable(Path(c.run_dir), "choose another run_dir=...")
@@ -207,28 +201,21 @@ def _train(cfgs: list[Config], trackers: Sequence[Tracker] | None, batched: bool
         raise SigmarlError("the block's seeds stand at different iterations ("
                            + ", ".join(f"seed {r.cfg.seed}: {r.start}" for r in runs)
                            + "); they were not trained as this block: train them alone, or as the block they were")
-    tags = {"block": block_name(first.model, [c.seed for c in cfgs])} if batched else {}
+    several = len(cfgs) > 1  # a block of one leaves what it always left: no block tag, no block.json
+    tags = {"block": block_name(first.model, [c.seed for c in cfgs])} if several else {}
     for r, t in zip(runs, trackers, strict=True):  # the stores are checked before any work
         r.open_record(t, tags)
     try:
-        learner = _learner(cfgs, device, batched)
+        learner = Learner(first, [c.seed for c in cfgs], device)
         for k, r in enumerate(runs):
             r.dims = learner.dims
             if r.state:
                 _load_state(learner, k, r.state, r.run.resume_file)
     except BaseException as e:
         finish_records(runs, e)
-    if batched:
+    if several:
         write_membership(folders, first.model, [c.seed for c in cfgs])
     return _iterate(cfgs, runs, learner)
-
-
-def _learner(cfgs: list[Config], device: torch.device, batched: bool):
-    if not batched:
-        return LoneLearner(cfgs[0], device)
-    from sigmarl.training.block import BlockLearner
-
-    return BlockLearner(cfgs[0], [c.seed for c in cfgs], device)
 
 
 def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResult]:

@@ -1,4 +1,4 @@
-"""MAPPO pieces: rollout collection, GAE, the clipped-PPO update.
+"""MAPPO pieces: rollout collection, GAE, the clipped-PPO update of S seeds (S = 1 for one).
 
 Batches are torchrl tensordicts shaped [envs, time] with the agents one level down
 (("agents", "observation") is [envs, time, agents, D]).
@@ -25,11 +25,11 @@ from sigmarl.training.ppo_loss import (
     TERMINATED,
     TERMS,
     VALUE_TARGET,
-    LeanPPOLoss,
-    TorchrlPPOLoss,
+    PPOLoss,
 )
 
-__all__ = ["collect", "make_collector", "make_gae", "rollout_stats", "update"]
+__all__ = ["clip_grad_norm_per_seed", "collect", "make_collector", "make_gae", "rollout_stats", "update"]
+
 
 def make_gae(critic: TensorDictModule, ppo: PPOConfig) -> GAE:
     gae = GAE(gamma=ppo.gamma, lmbda=ppo.lmbda, value_network=critic, average_gae=False, time_dim=1)
@@ -113,26 +113,42 @@ def rollout_stats(data: TensorDictBase) -> dict[str, float]:
     return {k: float(v) for k, v in stats.items()}
 
 
-def update(
-    data: TensorDictBase,
-    loss: LeanPPOLoss | TorchrlPPOLoss,
-    optimiser: torch.optim.Optimizer,
-    ppo: PPOConfig,
-) -> dict[str, float]:
-    """`epochs` passes of shuffled minibatches over the rollout; returns the mean loss terms."""
+def clip_grad_norm_per_seed(params: list[torch.Tensor], max_norm: float) -> torch.Tensor:
+    """`torch.nn.utils.clip_grad_norm_` for each seed of stacked parameters [S, ...]: seed k's
+    gradients scaled by min(1, max_norm / (|g_k| + 1e-6)), |g_k| over all its parameters.
+    Returns the seeds' norms [S]."""
+    grads = [p.grad for p in params if p.grad is not None]
+    if grads and grads[0].shape[0] == 1:  # one seed: torch's own (fused) clip, the same maths
+        return torch.nn.utils.clip_grad_norm_(params, max_norm).reshape(1)
+    norms = torch.stack([torch.linalg.vector_norm(g.flatten(1), 2, dim=1) for g in grads], 1)
+    total = torch.linalg.vector_norm(norms, 2, dim=1)
+    coef = (max_norm / (total + 1e-6)).clamp(max=1.0)
+    for g in grads:
+        g.mul_(coef.view(-1, *(1,) * (g.dim() - 1)))
+    return total
+
+
+def update(data: TensorDictBase, loss: PPOLoss, optimiser: torch.optim.Optimizer,
+           ppo: PPOConfig) -> list[dict[str, float]]:
+    """Per seed, `epochs` passes of that seed's own shuffled minibatches (each seed's order from
+    its own generator, drawn as `torch.randperm` draws it), each step's gradient clipped seed by
+    seed; returns each seed's mean loss terms (summed on the device: one host sync per
+    iteration, not per step)."""
     batch = loss.prepare(data)
-    n = data.numel()
+    s, n = batch["obs"].shape[:2]
     per_epoch = n // ppo.minibatch_size
     params = [p for group in optimiser.param_groups for p in group["params"]]
-    totals = torch.zeros(len(TERMS), device=data.device)
+    device = batch["obs"].device
+    totals = torch.zeros(s, len(TERMS), device=device)
+    gens = loss.streams.generators
     for _ in range(ppo.epochs):
-        order = torch.randperm(n, device=data.device)
+        order = torch.stack([torch.randperm(n, generator=g, device=device) for g in gens])
         for b in range(per_epoch):
-            total, terms = loss(batch, order[b * ppo.minibatch_size : (b + 1) * ppo.minibatch_size])
+            total, terms = loss(batch, order[:, b * ppo.minibatch_size: (b + 1) * ppo.minibatch_size])
             optimiser.zero_grad(set_to_none=True)
             total.backward()
-            torch.nn.utils.clip_grad_norm_(params, ppo.max_grad_norm)
+            clip_grad_norm_per_seed(params, ppo.max_grad_norm)
             optimiser.step()
-            totals += terms  # summed on the device: one host sync per iteration, not per step
+            totals += terms
     means = (totals / (ppo.epochs * per_epoch)).tolist()
-    return dict(zip(TERMS, means, strict=True))
+    return [dict(zip(TERMS, row, strict=True)) for row in means]

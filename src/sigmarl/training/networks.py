@@ -1,9 +1,17 @@
-"""The paper's actor and critic as torchrl modules.
+"""The paper's actor and critic: as torchrl modules (what checkpoints hold and evaluation runs),
+and as the S stacked copies a training of S seeds computes with (S = 1 for one seed).
 
 Actor: one MLP shared by all agents, observation D -> hidden -> 4 = (mean, scale) of a Gaussian
 squashed by tanh into the action box. Critic (the paper's, MAPPO): one centralised MLP over all
 agents' observations (N*D -> hidden -> 1); its single value is shared by all agents. With
 `network.centralised_critic=false` (IPPO) it sees only each agent's own observation.
+
+Training: `StackedMLP` holds seed k's parameters at index k of stacked tensors, computed with
+batched matrix products (`torch.baddbmm`). Each copy is built from a torchrl module initialised
+as that seed initialises it, and is written back into it (`unstack`) for a checkpoint, so the
+checkpoint format is the torchrl modules' `state_dict`. Parameters keep the module's order, so
+one Adam over the stacked tensors holds, index for index, each seed's own Adam (Adam is
+elementwise).
 """
 
 from __future__ import annotations
@@ -18,6 +26,7 @@ from torch import nn
 from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
 
 from sigmarl.config import NetworkConfig
+from sigmarl.env.streams import SeedStreams
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
@@ -159,28 +168,103 @@ class PolicyHead:
         return self.mid + self.half * loc.tanh().clamp(-self.tanh_limit, self.tanh_limit)
 
 
-class TanhNormalSampler(nn.Module):
-    """The actor's exploration policy for collecting rollouts, as plain tensor maths.
+class StackedMLP(nn.Module):
+    """S MultiAgentMLPs of one shape: parameter-shared (each agent's input through one MLP) or
+    one MLP per agent (parameters [S, A, ...]); decentralised (each agent's own observation) or
+    centralised (all agents' observations; shared: one value copied to every agent)."""
 
-    The same distribution as the ProbabilisticActor's TanhNormal, drawn the same way (one
-    `torch.normal(loc, scale)`, so the same seed gives the same actions), at a quarter of its
-    cost per step. It also returns the pre-tanh sample, so that the PPO loss can score the
-    action exactly instead of inverting a saturated tanh. Always samples: it is only used to
-    collect training rollouts (evaluation uses the actor itself).
-    """
-
-    def __init__(self, actor: ProbabilisticActor):
+    def __init__(self, nets: list[MultiAgentMLP]):
         super().__init__()
-        self.head = PolicyHead(actor)
+        first = nets[0]
+        self.centralised, self.shared = bool(first.centralized), bool(first.share_params)
+        self.n_agents = int(first.n_agents)
+        self.layers: list[tuple[int, int] | nn.Module] = []  # (weight, bias) slots or an activation
+        params = []
+        for name, module in first._empty_net.named_children():
+            if isinstance(module, nn.Linear):
+                for kind in ("weight", "bias"):
+                    params.append(nn.Parameter(torch.stack([n.params[name, kind].detach() for n in nets]).clone()))
+                self.layers.append((len(params) - 2, len(params) - 1))
+            elif isinstance(module, tuple(ACTIVATIONS.values())):
+                self.layers.append(module)
+            else:
+                raise ValueError(f"a StackedMLP cannot stack a {type(module).__name__}")
+        self.params = nn.ParameterList(params)
+        self._names = [(name, kind) for name, m in first._empty_net.named_children() if isinstance(m, nn.Linear)
+                       for kind in ("weight", "bias")]
+
+    @property
+    def n_seeds(self) -> int:
+        return int(self.params[0].shape[0])
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """[S, *batch, A, D] -> [S, *batch, A, out]. One MLP per agent runs as S * A batched ones."""
+        s, *batch, a, d = x.shape
+        if self.shared:
+            x = x.reshape(s, -1, a * d) if self.centralised else x.reshape(s, -1, d)
+        elif self.centralised:  # every agent's own MLP on the joint observation
+            x = x.reshape(s, 1, -1, a * d).expand(s, a, -1, a * d).reshape(s * a, -1, a * d)
+        else:
+            x = x.reshape(s, -1, a, d).transpose(1, 2).reshape(s * a, -1, d)
+        params, one = list(self.params), s == 1 and self.shared
+        for layer in self.layers:
+            if isinstance(layer, tuple):
+                w, b = params[layer[0]], params[layer[1]]
+                if one:  # one seed: a plain linear layer, a cheaper backward than a batch of one
+                    x = F.linear(x, w.view(w.shape[1:]), b.view(b.shape[1:]))
+                else:
+                    x = torch.baddbmm(b.reshape(-1, 1, b.shape[-1]), x, w.reshape(-1, *w.shape[-2:]).transpose(1, 2))
+            else:
+                x = layer(x)
+        out = x.shape[-1]
+        if not self.shared:
+            return x.reshape(s, a, -1, out).transpose(1, 2).reshape(s, *batch, a, out)
+        if self.centralised:  # one value per state, shared by the agents
+            return x.reshape(s, *batch, 1, out).expand(s, *batch, a, out)
+        return x.reshape(s, *batch, a, out)
+
+    @torch.no_grad()
+    def unstack(self, k: int, net: MultiAgentMLP) -> None:
+        """Write seed k's parameters into the torchrl network `net`."""
+        for p, (name, kind) in zip(self.params, self._names, strict=True):
+            net.params[name, kind].copy_(p[k])
+
+    @torch.no_grad()
+    def restack(self, k: int, net: MultiAgentMLP) -> None:
+        """Set seed k's parameters from the torchrl network `net` (a resume)."""
+        for p, (name, kind) in zip(self.params, self._names, strict=True):
+            p[k].copy_(net.params[name, kind])
+
+
+def per_seed(fn, n_seeds: int):
+    """`fn` on [S, ...] tensors as a function of [S * E, ...] tensors (the environment's
+    layout: seed k's environments are rows k*E .. (k+1)*E)."""
+    def apply(x: torch.Tensor) -> torch.Tensor:
+        out = fn(x.reshape(n_seeds, x.shape[0] // n_seeds, *x.shape[1:]))
+        return out.reshape(x.shape[0], *out.shape[2:])
+    return apply
+
+
+class Sampler(nn.Module):
+    """The exploration policy that collects training rollouts, as plain tensor maths: the
+    ProbabilisticActor's TanhNormal, each seed's Gaussian noise from its own generator, drawn as
+    `torch.normal(loc, scale)` draws it (N(0, 1) scaled and shifted), so a seed draws the actor's
+    actions. It also returns the pre-tanh sample, so that the loss scores an action exactly
+    instead of inverting a saturated tanh. Evaluation uses the actor itself."""
+
+    def __init__(self, head: PolicyHead, actor: StackedMLP, streams: SeedStreams):
+        super().__init__()
+        self.head, self.actor, self.streams = head, actor, streams
 
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         h = self.head
-        loc, scale = h.loc_scale(obs)
-        u = torch.normal(loc, scale)
+        loc, scale = h.scale_map(per_seed(self.actor, self.actor.n_seeds)(obs))
+        z = self.streams.randn((loc.shape[0] // self.actor.n_seeds, *loc.shape[1:]))
+        u = z * scale + loc
         action = h.mid + h.half * u.tanh().clamp(-h.tanh_limit, h.tanh_limit)
         log_prob = gaussian_log_prob((u - loc) / scale, scale.log()) - tanh_log_jacobian(u, h.log_half)
         return action, log_prob, u
 
 
-def make_sampler(actor: ProbabilisticActor) -> TensorDictModule:
-    return TensorDictModule(TanhNormalSampler(actor), in_keys=[OBS], out_keys=[ACTION, LOG_PROB, PREIMAGE])
+def make_sampler(head: PolicyHead, actor: StackedMLP, streams: SeedStreams) -> TensorDictModule:
+    return TensorDictModule(Sampler(head, actor, streams), in_keys=[OBS], out_keys=[ACTION, LOG_PROB, PREIMAGE])

@@ -1,16 +1,28 @@
-"""One seed's records while it trains, alone or in a block: its run folder (config.yaml,
-metrics.csv, checkpoints), its tracker record, its best reward, the metrics not yet sent.
+"""What a training writes: each seed's records while it trains (its run folder: config.yaml,
+metrics.csv, checkpoints; its tracker record, its best reward, the metrics not yet sent), and the
+resume points of a block's seeds committed together.
 
 Order of writes per iteration (what a kill at any instant leaves, and how a resume reads it):
 metrics.csv gets the row, best.pt is replaced if the reward improved, and every
 `ppo.checkpoint_every` iterations the resume point is written and only then are the metrics
 sent to the tracker; a kill in between is made good from metrics.csv on the next resume, so no
 iteration is lost or doubled.
+
+A block of several seeds also leaves `block.json` in each seed's folder (the block it trained in,
+`sigmarl.block_membership`), and commits its resume points in two phases: every seed's new
+checkpoint is first written beside its old one (`checkpoint.next.pt`), and only when all are on
+disk is each renamed over `checkpoint.pt`. A kill in phase 1 leaves every old checkpoint (the new
+ones are dropped on resume); a kill in phase 2 leaves all the new ones written (the renames are
+finished on resume). So the seeds always resume from one common iteration. One seed's folder is
+the same whatever trained it: one atomic write per resume point, no `block.json`.
 """
 
 from __future__ import annotations
 
+import os
 import sys
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from sigmarl import crash
@@ -139,3 +151,40 @@ def finish_records(runs: list[SeedRun], error: BaseException) -> None:
     if not interrupted or isinstance(error, KeyboardInterrupt):
         raise error
     raise Terminated() from error
+
+
+def commit_checkpoints(runs: Sequence[Run], states: Sequence[dict[str, Any]]) -> None:
+    """Replace every seed's resume point, all or none (see the module's docstring)."""
+    if len(runs) == 1:
+        ckpt.save_atomic(states[0], runs[0].resume_file)
+        return
+    for run, state in zip(runs, states, strict=True):
+        ckpt.save_atomic(state, run.next_resume_file)
+    crash.point(f"train:block-written:{states[0]['iteration']}")
+    for i, run in enumerate(runs):
+        os.replace(run.next_resume_file, run.resume_file)
+        if i == 0:
+            crash.point(f"train:block-renaming:{states[0]['iteration']}")
+
+
+def settle_checkpoints(runs: Sequence[Run]) -> None:
+    """Finish or drop a commit a kill interrupted, before the block resumes."""
+    nexts = [run for run in runs if run.next_resume_file.exists()]
+    if not nexts:
+        return
+    target = _iteration(nexts[0].next_resume_file)
+    renamed = [run for run in runs if run not in nexts and run.resume_file.exists()
+               and _iteration(run.resume_file) == target]
+    if len(nexts) + len(renamed) == len(runs):  # phase 1 was complete: finish phase 2
+        for run in nexts:
+            os.replace(run.next_resume_file, run.resume_file)
+    else:  # phase 1 was cut short: the old resume points stand
+        for run in nexts:
+            run.next_resume_file.unlink()
+
+
+def _iteration(path: Path) -> int | None:
+    try:
+        return ckpt.load(path, resume=True)["iteration"]
+    except SigmarlError:
+        return None
