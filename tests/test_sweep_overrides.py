@@ -4,6 +4,8 @@ anything trains."""
 
 from __future__ import annotations
 
+import re
+
 import pandas as pd
 import pytest
 import torch
@@ -154,7 +156,7 @@ def test_sweep_with_list_values_end_to_end(tmp_path, monkeypatch, capsys):
     assert list(rows["scenario"]) == ["CPM", "Roundabout"]
     state = torch.load(run / "final.pt", weights_only=False)
     assert list(state["config"]["network"]["hidden"]) == [16, 16]
-    assert "M0     obs=full" in capsys.readouterr().out
+    assert re.search(r"^  M0 +obs=full +seed 0 +trained and evaluated", capsys.readouterr().out, re.M)
 
 
 def test_one_composition_per_variant_gives_what_each_seed_composed_alone_gives(tmp_path):
