@@ -3,7 +3,7 @@
 lock, `report`), each run against the `sigmarl` CLI in its own temporary folder at a smoke
 budget, PASS or FAIL per probe (exit code 1 if any fails).
 
-    python scripts/probe.py               # the whole round (about 4 minutes on 2 cores)
+    python scripts/probe.py               # the whole round (83 s on 2 idle cores)
     python scripts/probe.py F13 G1 kill9  # the probes named so: an exact name, or its fault (F6: both F6 probes)
     python scripts/probe.py --list F6     # the names a selection runs, without running them
     python scripts/probe.py --quick       # the probes that train nothing (bad input; a minute)
