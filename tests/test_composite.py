@@ -7,8 +7,8 @@ import warnings
 import pandas as pd
 import pytest
 
-from sigmarl.report.composite import composite_score
-from sigmarl.report.paper import paper_values
+from sigmarl.report.table.composite import composite_score
+from sigmarl.report.table.paper import paper_values
 
 MODELS = ["M0", "M1", "M2", "M3", "M4", "M5"]
 SCENARIOS = ["CPM", "Intersection", "On-Ramp", "Roundabout"]

@@ -1,4 +1,4 @@
-"""Training curves compared (`report.curve_verdicts`): window means, Welch per window against the
+"""Training curves compared (`report.compare.curve_verdicts`): window means, Welch per window against the
 baseline with Holm's correction, where the curves part, and the paper's one seed against our
 prediction interval; checked on hand-worked numbers, scipy and a results folder."""
 
@@ -14,14 +14,14 @@ import pytest
 from scipy import stats
 
 from sigmarl.cli import main
-from sigmarl.report.curve_verdicts import (
+from sigmarl.report.compare.curve_verdicts import (
     paper_model_of,
     paper_seed_table,
     parting,
     separation_table,
     window_means,
 )
-from sigmarl.report.verdicts import Design
+from sigmarl.report.compare.verdicts import Design
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from sigmarl.report.findings import findings_markdown
+from sigmarl.report.compare.findings import findings_markdown
 
 
 def _summary() -> pd.DataFrame:

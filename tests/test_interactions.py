@@ -11,8 +11,8 @@ from scipy import stats
 
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
-from sigmarl.report.interactions import interaction_table, interactions_markdown
-from sigmarl.report.verdicts import Design
+from sigmarl.report.compare.interactions import interaction_table, interactions_markdown
+from sigmarl.report.compare.verdicts import Design
 
 # seed means in %: one simulation per seed, so a seed's mean is its value
 SEEDS = {"M0-paper": [1.0, 2.0, 3.0], "M4-paper": [3.0, 4.0, 5.0], "M0": [1.5, 2.5, 2.0], "M4": [2.0, 2.5, 3.0]}

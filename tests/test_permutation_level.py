@@ -33,7 +33,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from sigmarl.report.verdicts import decide, seed_values
+from sigmarl.report.compare.verdicts import decide, seed_values
 from sigmarl.stats.permutation import permutation_p, permutation_test
 from sigmarl.stats.sequential import (
     first_decidable_look,

@@ -1,4 +1,4 @@
-"""The replication verdicts (`report.replication`): every number of the table worked by hand
+"""The replication verdicts (`report.compare.replication`): every number of the table worked by hand
 or by scipy, the rules on cases whose answer is known, and the published table against the
 committed folder."""
 
@@ -12,8 +12,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from sigmarl.report.paper import paper_values
-from sigmarl.report.replication import (
+from sigmarl.report.compare.replication import (
     decide,
     difference_claims,
     pair_position,
@@ -22,6 +21,7 @@ from sigmarl.report.replication import (
     replication_table,
     summary_line,
 )
+from sigmarl.report.table.paper import paper_values
 from sigmarl.stats.one_sided import greater_p, less_p
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -155,7 +155,7 @@ def test_ranking_share_of_an_even_race_is_near_half():
 # ---- the published table ----
 
 def test_published_replication_is_the_committed_folders():
-    from sigmarl.report.folder import read_results
+    from sigmarl.report.inputs.folder import read_results
 
     rows = read_results(ROOT / "results" / "paper-budget").rows
     table = replication_table(rows, ["M0", "M1", "M2", "M3", "M4", "M5"])

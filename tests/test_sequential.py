@@ -14,8 +14,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sigmarl.report.rounds import next_round
-from sigmarl.report.verdicts import Design, decide
+from sigmarl.report.compare.verdicts import Design, decide
+from sigmarl.report.seeds.rounds import next_round
 from sigmarl.stats.sequential import (
     boundaries,
     nominal_levels,

@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from sigmarl.report.plan import plan_table, plan_text
-from sigmarl.report.verdicts import Design, verdict_table, verdicts_markdown
+from sigmarl.report.compare.verdicts import Design, verdict_table, verdicts_markdown
+from sigmarl.report.seeds.plan import plan_table, plan_text
 from sigmarl.stats.power import (
     difference_power,
     equivalence_power,

@@ -26,9 +26,9 @@ import pandas as pd
 
 from sigmarl.errors import SigmarlError
 from sigmarl.readers import read_json
-from sigmarl.report.folder import RunFolder, rows_of
-from sigmarl.report.rounds import key, next_round
-from sigmarl.report.verdicts import design_of
+from sigmarl.report.compare.verdicts import design_of
+from sigmarl.report.inputs.folder import RunFolder, rows_of
+from sigmarl.report.seeds.rounds import key, next_round
 from sigmarl.run import Run, write_atomic
 from sigmarl.stats.sequential import first_decidable_look
 from sigmarl.sweep import launch, plan_sweep

@@ -142,7 +142,7 @@ def cmd_report(args: argparse.Namespace) -> None:
         if not args.source:
             raise SigmarlError("--plan reads a results folder: give it with --from FOLDER")
         from sigmarl.compose import compose_config
-        from sigmarl.report.plan import plan_from_folder
+        from sigmarl.report.seeds.plan import plan_from_folder
 
         study = compose_config(args.overrides).study
         print(plan_from_folder([Path(s) for s in args.source], args.models.split(",") if args.models else None,

@@ -1,13 +1,13 @@
 """The study's report: aggregation, composite score, Table I, figures.
 
-Figures live in `sigmarl.report.figures` (imported on use, since matplotlib is slow to load).
+Figures live in `sigmarl.report.exports.figures` (imported on use, since matplotlib is slow to load).
 """
 
-from sigmarl.report.aggregate import aggregate, trim_collisions
 from sigmarl.report.build import BuildOptions, Report, build_report
-from sigmarl.report.composite import CompositeScore, composite_score, composite_scores
-from sigmarl.report.paper import paper_table, paper_values
-from sigmarl.report.tables import (
+from sigmarl.report.table.aggregate import aggregate, trim_collisions
+from sigmarl.report.table.composite import CompositeScore, composite_score, composite_scores
+from sigmarl.report.table.paper import paper_table, paper_values
+from sigmarl.report.table.tables import (
     ResultTable,
     best_mask,
     build_table,

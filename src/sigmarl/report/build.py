@@ -14,7 +14,21 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.report.aggregate import (
+from sigmarl.report.compare.curve_verdicts import (
+    curve_verdicts_markdown,
+    paper_model_of,
+    paper_seed_table,
+    separation_table,
+)
+from sigmarl.report.compare.findings import findings_markdown
+from sigmarl.report.compare.interactions import interaction_table, interactions_markdown
+from sigmarl.report.compare.replication import replication_markdown, replication_table
+from sigmarl.report.compare.verdicts import Design, verdict_table, verdicts_markdown
+from sigmarl.report.exports.marl_eval import export_files, interval_data
+from sigmarl.report.seeds.next_seed import next_seed_markdown, prediction_table, slow_seed_table
+from sigmarl.report.seeds.per_seed import seed_table, seeds_markdown
+from sigmarl.report.seeds.training import paper_last_rewards, training_markdown, training_summary
+from sigmarl.report.table.aggregate import (
     cells,
     model_order,
     scenario_order,
@@ -22,29 +36,17 @@ from sigmarl.report.aggregate import (
     trim_collisions,
     validate_rows,
 )
-from sigmarl.report.composite import composite_scores
-from sigmarl.report.curve_verdicts import (
-    curve_verdicts_markdown,
-    paper_model_of,
-    paper_seed_table,
-    separation_table,
-)
-from sigmarl.report.findings import findings_markdown
-from sigmarl.report.interactions import interaction_table, interactions_markdown
-from sigmarl.report.marl_eval import export_files, interval_data
-from sigmarl.report.next_seed import next_seed_markdown, prediction_table, slow_seed_table
-from sigmarl.report.paper import paper_curves, paper_values
-from sigmarl.report.replication import replication_markdown, replication_table
-from sigmarl.report.scores import (
+from sigmarl.report.table.composite import composite_scores
+from sigmarl.report.table.header import caption, reward_differs, study_markdown
+from sigmarl.report.table.notes import table_notes
+from sigmarl.report.table.paper import paper_curves, paper_values
+from sigmarl.report.table.scores import (
     aggregate_scores,
     composite_intervals,
     improvement,
     improvement_overall,
 )
-from sigmarl.report.seeds import seed_table, seeds_markdown
-from sigmarl.report.study_header import caption, reward_differs, study_markdown
-from sigmarl.report.table_notes import table_notes
-from sigmarl.report.tables import (
+from sigmarl.report.table.tables import (
     ResultTable,
     build_table,
     matrix_markdown,
@@ -53,8 +55,6 @@ from sigmarl.report.tables import (
     to_latex,
     to_markdown,
 )
-from sigmarl.report.training import paper_last_rewards, training_markdown, training_summary
-from sigmarl.report.verdicts import Design, verdict_table, verdicts_markdown
 
 # in table.md, between what the columns are and the table itself
 TABLE_HEADING = "## Table"
@@ -210,7 +210,7 @@ def table_section(d: Draft) -> None:
 
 def statistics_section(d: Draft) -> None:
     """Probability of improvement and aggregate scores over scenarios: statistics.md,
-    improvement.csv, improvement_overall.csv and aggregate_scores.csv (`sigmarl.report.scores`);
+    improvement.csv, improvement_overall.csv and aggregate_scores.csv (`sigmarl.report.table.scores`);
     none for a one-column report, which has nothing to compare."""
     if len(d.models) < 2:
         return
@@ -241,7 +241,7 @@ def training_section(d: Draft) -> None:
 
 
 def study_section(d: Draft) -> None:
-    """What the report compares (the study page, `report.study_header`), the columns' configs given."""
+    """What the report compares (the study page, `report.table.header`), the columns' configs given."""
     o = d.options
     if o.configs is None or o.defaults is None:
         return
@@ -291,7 +291,7 @@ def verdicts_section(d: Draft) -> None:
 
 
 def findings_section(d: Draft) -> None:
-    """What the study found, in sentences of its own figures (findings.md; `report.findings`)."""
+    """What the study found, in sentences of its own figures (findings.md; `report.compare.findings`)."""
     if d.summary is None or not len(d.summary):
         return
     d.write("findings", "findings.md", findings_markdown(d.summary, d.verdicts, d.models, d.baseline,
@@ -301,7 +301,7 @@ def findings_section(d: Draft) -> None:
 def marl_eval_section(d: Draft) -> None:
     """The rows as marl-eval's JSON, split by seed set so each file loads whole (marl_eval.json:
     the seeds common to all models), and its intervals with every seed and the real number of
-    seeds (marl_eval_intervals.json; `sigmarl.report.marl_eval`)."""
+    seeds (marl_eval_intervals.json; `sigmarl.report.exports.marl_eval`)."""
     chosen = d.rows[d.rows["model"].isin(d.models)]
     for name, data in export_files(chosen, d.models, d.curves).items():
         d.write(name.removesuffix(".json"), name, data)
@@ -330,7 +330,7 @@ def curve_verdicts_section(d: Draft) -> None:
 
 def replication_section(d: Draft) -> None:
     """(compare_paper) Does each claim of the paper's Table I reproduce: replication.csv and
-    replication.md (`report.replication`), over the columns that are the paper's own models
+    replication.md (`report.compare.replication`), over the columns that are the paper's own models
     (label and observation strategies both, so no other design is read as the paper's)."""
     if not d.options.compare_paper or "M0" not in d.models:
         return
@@ -349,7 +349,7 @@ def figures_section(d: Draft) -> None:
     if not d.options.figures:
         return
     # matplotlib is imported only when drawing: table-only reports stay quick to start
-    from sigmarl.report.figures import (
+    from sigmarl.report.exports.figures import (
         plot_distributions,
         plot_heatmap,
         plot_performance_profiles,

@@ -14,12 +14,12 @@ from pathlib import Path
 from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
 from sigmarl.readers import read_run_config
-from sigmarl.report.aggregate import label_order
 from sigmarl.report.build import BuildOptions, Report, build_report
-from sigmarl.report.columns import check_columns, one_config_per_run, variant_configs
-from sigmarl.report.coverage import belongs, check, left_out
-from sigmarl.report.folder import checkpoint_of, read_many, read_results, run_folders
-from sigmarl.report.verdicts import design_of
+from sigmarl.report.compare.verdicts import design_of
+from sigmarl.report.inputs.columns import check_columns, one_config_per_run, variant_configs
+from sigmarl.report.inputs.coverage import belongs, check, left_out
+from sigmarl.report.inputs.folder import checkpoint_of, read_many, read_results, run_folders
+from sigmarl.report.table.aggregate import label_order
 from sigmarl.run import Run
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, open_tracker, records
@@ -102,7 +102,7 @@ def what_it_reports(report: Report, cfg: Config, options: ReportOptions) -> dict
 def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path | None = None,
                             options: ReportOptions = ReportOptions()) -> Report:
     """The report of a results folder, or of several (a study whose variants live in different
-    folders, e.g. reused runs of another study), `sigmarl.report.folder`: no MLflow reads, no
+    folders, e.g. reused runs of another study), `sigmarl.report.inputs.folder`: no MLflow reads, no
     training.
 
     Logged as a report run to the tracker (experiment `cfg.tracking.experiment`).

@@ -133,7 +133,7 @@ def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
     frames = []
     # Keep the newest evaluation of each (model, seed, training config) so a re-evaluation
     # replaces the old one, and a run of another config under the same label does not hide the
-    # declared one's (the report chooses by fingerprint: sigmarl.report.columns)
+    # declared one's (the report chooses by fingerprint: sigmarl.report.inputs.columns)
     latest = {}
     for run in runs:
         tags = run.data.tags

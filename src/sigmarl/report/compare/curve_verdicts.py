@@ -24,9 +24,9 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.ablation import OBS_FLAGS
+from sigmarl.report.compare.verdicts import Design
 from sigmarl.report.format import signed
-from sigmarl.report.training import LAST
-from sigmarl.report.verdicts import Design
+from sigmarl.report.seeds.training import LAST
 from sigmarl.stats.intervals import t_critical
 from sigmarl.stats.tests import holm, welch
 

@@ -26,7 +26,7 @@ from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
 from sigmarl.readers import read_training_curve
-from sigmarl.report.coverage import run_state
+from sigmarl.report.inputs.coverage import run_state
 from sigmarl.rows import check_rows
 from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
 

@@ -15,10 +15,7 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
-from sigmarl.report.aggregate import model_order, validate_rows
-from sigmarl.report.folder import read_many, read_results
-from sigmarl.report.format import signed
-from sigmarl.report.verdicts import (
+from sigmarl.report.compare.verdicts import (
     Design,
     design_of,
     margin_unit,
@@ -26,6 +23,9 @@ from sigmarl.report.verdicts import (
     verdict_label,
     verdict_table,
 )
+from sigmarl.report.format import signed
+from sigmarl.report.inputs.folder import read_many, read_results
+from sigmarl.report.table.aggregate import model_order, validate_rows
 from sigmarl.stats import permutation, planning
 from sigmarl.stats.power import seeds_for_difference, seeds_for_equivalence
 

@@ -13,7 +13,7 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
 from sigmarl.metrics import BY_NAME, label
-from sigmarl.report.verdicts import seed_values
+from sigmarl.report.compare.verdicts import seed_values
 from sigmarl.stats import bootstrap as bs
 from sigmarl.stats.profiles import scenario_profiles, seed_band
 

@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import shown_unit
+from sigmarl.report.compare.verdicts import Design, comparisons, margin_unit
 from sigmarl.report.format import p_text, signed
-from sigmarl.report.verdicts import Design, comparisons, margin_unit
 from sigmarl.stats.intervals import t_critical
 from sigmarl.stats.tests import contrast, holm
 

@@ -33,10 +33,10 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import COMPOSITE
-from sigmarl.report.aggregate import trim_collisions
+from sigmarl.report.compare.verdicts import seed_values
 from sigmarl.report.format import p_text, signed
-from sigmarl.report.paper import paper_values
-from sigmarl.report.verdicts import seed_values
+from sigmarl.report.table.aggregate import trim_collisions
+from sigmarl.report.table.paper import paper_values
 from sigmarl.stats import bootstrap as bs
 from sigmarl.stats.one_sided import greater_p, less_p
 from sigmarl.stats.power import seeds_for_difference

@@ -64,7 +64,7 @@ class Design:
     # variant -> the variant it is compared with instead of `baseline` (a factorial study
     # compares within each level of the other factor, e.g. M4-paper with M0-paper, M4 with M0)
     baselines: dict[str, str] = field(default_factory=dict)
-    # name -> (x, y): x's comparison with its baseline set against y's (`report.interactions`)
+    # name -> (x, y): x's comparison with its baseline set against y's (`report.compare.interactions`)
     interactions: dict[str, tuple[str, str]] = field(default_factory=dict)
     scenarios: Sequence[str] | None = None  # None: every scenario in the rows, in order
     metrics: Sequence[str] = ("CR_total",)

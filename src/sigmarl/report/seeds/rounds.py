@@ -10,7 +10,7 @@ import pandas as pd
 
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import BY_NAME
-from sigmarl.report.verdicts import Design, comparisons
+from sigmarl.report.compare.verdicts import Design, comparisons
 from sigmarl.stats.sequential import sequential_decide
 
 

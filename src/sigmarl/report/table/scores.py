@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import COMPOSITE, METRIC_COLUMNS
-from sigmarl.report.aggregate import Cell, scenario_order, trim_collisions, validate_rows
+from sigmarl.report.table.aggregate import Cell, scenario_order, trim_collisions, validate_rows
 from sigmarl.stats import bootstrap as bs
 
 _SCORE_SIGNS = COMPOSITE
