@@ -38,6 +38,9 @@ SMOKE = ["ppo=smoke", "threads=1", "tracking.enabled=false"]
 SEEDS = [0, 1, 2]
 TIMING = ("frames_per_s", "time_collect_s", "time_advantage_s", "time_optimise_s")
 ROLLOUT = ("episode_reward_mean", "reward_mean", "episodes", "train_agent_collision", "train_lane_collision")
+# what a rollout counts: equal on any CPU (reward means are float sums, whose last bits move with
+# the CPU's vector kernels: 4e-7 apart on an AMD EPYC with avx512_bf16)
+COUNTS = ROLLOUT[2:]
 
 
 def _weights(path: Path) -> dict[str, torch.Tensor]:
@@ -164,10 +167,12 @@ def test_one_seed_trains_as_the_lone_path_trained_it(tmp_path) -> None:
     assert [it for it, _ in rows] == [r["iteration"] for r in ref["metrics"]] == [1, 2, 3]
     for (it, got), want in zip(rows, ref["metrics"], strict=True):
         for name, value in want.items():
-            if name in ROLLOUT and it == 1:
+            if name in COUNTS and it == 1:
                 assert got[name] == value, name  # the first rollout: the same initial weights, spawns, actions
             elif name != "iteration":
-                assert math.isclose(got[name], value, rel_tol=1e-5, abs_tol=1e-9), (it, name)
+                # abs 1e-6: a loss near zero (1e-3 after cancellation) keeps the float32 error of its
+                # O(0.1) terms (9e-8 measured on the AMD EPYC above)
+                assert math.isclose(got[name], value, rel_tol=1e-5, abs_tol=1e-6), (it, name)
     weights = _weights(tmp_path / f"run/{RESUME_FILE}")
     assert weights.keys() == ref["weights"].keys()
     adam_bound = 2e-4 * 3 * 2 * 4 * 1.01  # lr x (3 iterations x 2 epochs x 4 minibatches)
