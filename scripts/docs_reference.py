@@ -2,7 +2,8 @@
 they cannot drift: the command line (from sigmarl's argparse parser), every config key (type,
 default and help line, from the config dataclasses), the shipped options of each config group
 and the scenarios (from the files of conf/ and their opening comments), the files of a run
-folder (from `sigmarl.run`) and the floors of the imports (from `sigmarl.floors`). A page asks for one with a marker line, e.g. `<!-- generated: config -->`.
+folder (from `sigmarl.run`), a report's files (from the sections of `sigmarl.report.build`)
+and the floors of the imports (from `sigmarl.floors`). A page asks for one with a marker line, e.g. `<!-- generated: config -->`.
 
 mkdocs.yml loads this file as a hook (`on_page_markdown`); `python scripts/docs_reference.py
 NAME` prints one part.
@@ -148,8 +149,21 @@ def floors() -> str:
     return "\n".join([*rows, "", "Imports up a floor: " + ("none." if not up else f"{len(up)}, each for a reason:"), *up]) + "\n"
 
 
+def report_files() -> str:
+    """A report's files, section by section in the order they are built, from each section's
+    declaration (`report.draft.Section`): a file no section declares cannot be written."""
+    from sigmarl.report.build import SECTIONS
+
+    rows = ["| section | when | file | what it holds |", "|---|---|---|---|"]
+    for section in SECTIONS:
+        for i, (name, what) in enumerate(section.files.items()):
+            head = (f"`{section.name}`", _cell(section.when or "always")) if i == 0 else ("", "")
+            rows.append(f"| {head[0]} | {head[1]} | `{name}` | {_cell(what)} |")
+    return "\n".join(rows) + "\n"
+
+
 PARTS = {"cli": cli, "config": config, "run-folder": run_folder, "presets": presets, "scenarios": scenarios,
-         "floors": floors}
+         "floors": floors, "report-files": report_files}
 
 
 def expand(markdown: str) -> str:

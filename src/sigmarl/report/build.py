@@ -7,8 +7,6 @@ files through `Draft.write` and leaves what later sections or the caller need on
 
 from __future__ import annotations
 
-import json
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -23,7 +21,8 @@ from sigmarl.report.compare.curve_verdicts import (
 from sigmarl.report.compare.findings import findings_markdown
 from sigmarl.report.compare.interactions import interaction_table, interactions_markdown
 from sigmarl.report.compare.replication import replication_markdown, replication_table
-from sigmarl.report.compare.verdicts import Design, verdict_table, verdicts_markdown
+from sigmarl.report.compare.verdicts import verdict_table, verdicts_markdown
+from sigmarl.report.draft import BuildOptions, Draft, Section, check_sections
 from sigmarl.report.exports.marl_eval import export_files, interval_data
 from sigmarl.report.seeds.next_seed import next_seed_markdown, prediction_table, slow_seed_table
 from sigmarl.report.seeds.per_seed import seed_table, seeds_markdown
@@ -58,8 +57,6 @@ from sigmarl.report.table.tables import (
 
 # in table.md, between what the columns are and the table itself
 TABLE_HEADING = "## Table"
-# Fixed formatting of every CSV's floats: the same rows give byte-identical files.
-FLOAT_FORMAT = "%.10g"
 
 
 @dataclass
@@ -80,85 +77,6 @@ class Report:
     verdicts_markdown: str = ""
 
 
-@dataclass(frozen=True)
-class BuildOptions:
-    """What `build_report` draws and where.
-
-    out_dir: the folder the files go into; models: the columns, in order (default: every model
-    in the rows, in `order`); trim: drop each evaluation's best and worst simulation from the
-    collision rates; compare_paper: the paper's numbers in parentheses; ci: 95% bootstrap
-    intervals in the table; order: the study's labels in declared order; baseline: what every
-    other column is compared with (default M0, or the first column); design: the verdicts'
-    study parameters (default: the models against the baseline on CR_total).
-    """
-
-    out_dir: Path
-    models: list[str] | None = None
-    trim: bool = False
-    compare_paper: bool = False
-    latex: bool = False
-    ci: bool = False
-    figures: bool = True
-    extra_notes: tuple[str, ...] = ()
-    order: list[str] | None = None
-    baseline: str | None = None
-    design: Design | None = None
-    # per column one training config (the study page: what each column changes); defaults: the
-    # configuration without overrides; commit: the checkout the report is built at
-    configs: dict | None = None
-    defaults: object | None = None
-    commit: str | None = None
-
-
-@dataclass
-class Draft:
-    """The report as its sections build it."""
-
-    rows: pd.DataFrame
-    options: BuildOptions
-    curves: pd.DataFrame | None
-    models: list[str] = field(default_factory=list)
-    cells: list = field(default_factory=list)
-    summary: pd.DataFrame | None = None
-    composite: pd.DataFrame | None = None
-    table: ResultTable | None = None
-    markdown: str = ""
-    notes: list[str] = field(default_factory=list)
-    improvement: pd.DataFrame | None = None
-    aggregates: pd.DataFrame | None = None
-    statistics: str = ""
-    training: pd.DataFrame | None = None
-    verdicts: pd.DataFrame | None = None
-    verdicts_markdown: str = ""
-    paths: dict[str, Path] = field(default_factory=dict)
-
-    @property
-    def baseline(self) -> str | None:
-        """The compared-with column, if it is one of the report's."""
-        return self.options.baseline if self.options.baseline in self.models else None
-
-    @property
-    def design(self) -> Design:
-        """The study's verdict design over the report's columns (default: against M0, or the first)."""
-        design = self.options.design
-        return replace(design, variants=list(self.models)) if design is not None else \
-            Design(variants=self.models, baseline="M0" if "M0" in self.models else self.models[0])
-
-    def write(self, key: str, name: str, content: str | pd.DataFrame | dict | None) -> None:
-        """One file of the report: Markdown text, a CSV of a frame (fixed float format, so the
-        same rows give the same bytes) or JSON; None or an empty frame writes nothing."""
-        if content is None or (isinstance(content, pd.DataFrame) and not len(content)):
-            return
-        path = self.options.out_dir / name
-        if isinstance(content, pd.DataFrame):
-            content.to_csv(path, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-        elif isinstance(content, dict):
-            path.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n", encoding="utf-8")
-        else:
-            path.write_text(content, encoding="utf-8")
-        self.paths[key] = path
-
-
 def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame | None = None) -> Report:
     """Aggregate evaluation rows into the paper's Table I and the report's other files in
     `options.out_dir`, one section after another (`SECTIONS`).
@@ -176,7 +94,9 @@ def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame
     draft.models = model_order(rows, options.models, options.order)
     options.out_dir.mkdir(parents=True, exist_ok=True)
     for section in SECTIONS:
-        section(draft)
+        draft.section = section
+        section.build(draft)
+    draft.section = None
     return Report(draft.markdown, draft.table, draft.summary, draft.composite, draft.improvement,
                   draft.aggregates, draft.statistics, draft.training, draft.paths, draft.notes,
                   draft.verdicts, draft.verdicts_markdown)
@@ -357,21 +277,91 @@ def figures_section(d: Draft) -> None:
         plot_training_curves,
     )
 
-    out, models, scenarios = d.options.out_dir, d.models, scenario_order(d.rows)
+    models, scenarios = d.models, scenario_order(d.rows)
     chosen = d.rows[d.rows["model"].isin(models)]
-    d.paths["distributions"] = plot_distributions(chosen, models, scenarios, out / "distributions.png")
+    plot_distributions(chosen, models, scenarios, d.file("distributions", "distributions.png"))
     if d.curves is not None:
-        d.paths["training_curves"] = plot_training_curves(
-            d.curves, out / "training_curves.png", models,
-            paper=paper_curves() if d.options.compare_paper else None)
-        d.paths["training_band"] = plot_training_band(d.curves, out / "training_band.png", models)
+        plot_training_curves(d.curves, d.file("training_curves", "training_curves.png"), models,
+                             paper=paper_curves() if d.options.compare_paper else None)
+        plot_training_band(d.curves, d.file("training_band", "training_band.png"), models)
     if len(scenarios) > 1 and len(models) > 1:
-        d.paths["heatmap"] = plot_heatmap(d.summary, models, scenarios, out / "heatmap.png")
-    d.paths["performance_profiles"] = plot_performance_profiles(chosen, models, scenarios,
-                                                                out / "performance_profiles.png")
+        plot_heatmap(d.summary, models, scenarios, d.file("heatmap", "heatmap.png"))
+    plot_performance_profiles(chosen, models, scenarios, d.file("performance_profiles", "performance_profiles.png"))
 
 
-SECTIONS: list[Callable[[Draft], None]] = [
-    study_section, table_section, statistics_section, training_section, seeds_section, latex_section, verdicts_section,
-    findings_section, marl_eval_section, curve_verdicts_section, replication_section, figures_section,
+STUDY = Section("study", {
+    "study.md": "what the report compares: per column its label, fingerprint, seeds and the training settings "
+                "it changes against the baseline; the settings every column shares where they are not the "
+                "defaults, a sweep's command line included; the training and evaluation budget; the commit "
+                "the report was built at"}, study_section, when="the columns' training configs known")
+TABLE = Section("table", {
+    "table.md": "the same header as `study.md`, less the commit, then Table I: each metric per scenario and "
+                "model, the best per row in bold, the composite score, its notes",
+    "table.csv": "Table I's cells (`source`: ours, or the paper's with `--compare-paper`)",
+    "summary.csv": "per scenario, model and metric: estimate, 95% interval, spread, simulations and seeds",
+    "composite_scores.csv": "the composite score per scenario and model, with its 95% interval",
+    "matrix.md": "every metric of every model on every scenario, with intervals"}, table_section)
+STATISTICS = Section("statistics", {
+    "improvement.csv": "per scenario, the probability that the baseline has a lower CR_total than each other "
+                       "column, with its interval",
+    "improvement_overall.csv": "the same averaged over scenarios, whole seeds resampled",
+    "aggregate_scores.csv": "each model's composite score over scenarios: mean and IQM, with intervals",
+    "statistics.md": "the three files above as Markdown"}, statistics_section, when="two columns or more")
+TRAINING = Section("training", {
+    "training.csv": "per seed: iterations, compute time, last and best reward",
+    "training.md": "the same per model (the paper's Fig. 5 beside it with `--compare-paper`); where the columns "
+                   "train on different rewards it opens by saying their rewards are not comparable"},
+    training_section, when="training curves (`metrics.csv`) read")
+SEEDS = Section("seeds", {
+    "seeds.csv": "each evaluated model-seed's collision rates per scenario, its worst one, center-line "
+                 "deviation, speed range and reward over three windows of training",
+    "seeds.md": "the same as Markdown; per model with 5 seeds or more, Spearman's correlation of a seed's "
+                "reward with its collisions, and where a next seed will land",
+    "seed_prediction.csv": "per model and scenario: the next seed's 95% prediction interval of CR_total and "
+                           "the seeds' range",
+    "slow_seeds.csv": "with `study.slow_seed`: each variant's slow seeds against its baseline's, Fisher's "
+                      "exact p"}, seeds_section)
+LATEX = Section("latex", {
+    "table.tex": "Table I in booktabs; its caption says each column's label and what it changes against the "
+                 "baseline, the shared settings and the budget"}, latex_section, when="`--latex`")
+VERDICTS = Section("verdicts", {
+    "verdicts.csv": "each comparison (variant against its baseline, per scenario and metric): the difference "
+                    "with its interval, permutation and Welch p-values, the verdict and the seeds it needs",
+    "verdicts.md": "the same as Markdown, a factorial study's interactions under it",
+    "interactions.csv": "a factorial study's interactions (difference of differences)"},
+    verdicts_section, when="a baseline and a variant to compare")
+FINDINGS = Section("findings", {
+    "findings.md": "the study's figures in sentences: seeds per model, the baseline's worst collision rate and "
+                   "speed range, each variant's verdicts (the results pages quote it)"}, findings_section)
+MARL_EVAL = Section("marl_eval", {
+    "marl_eval.json": "the rows in marl-eval 0.0.4's format, the seeds every model has",
+    "marl_eval_<models>.json": "one per group of models with a larger seed set, e.g. `marl_eval_M0_M4.json`",
+    "marl_eval_intervals.json": "every seed, the real n and Student t, and which file holds which seeds"},
+    marl_eval_section)
+CURVE_VERDICTS = Section("curve_verdicts", {
+    "curve_verdicts.csv": "each compared variant's reward against its baseline's per window of 25 iterations "
+                          "(Welch, Holm-adjusted)",
+    "curve_verdicts.md": "the same as Markdown, and where the curves part",
+    "paper_seeds.csv": "with `--compare-paper`: whether the paper's one seed could be one of ours"},
+    curve_verdicts_section, when="training curves read")
+REPLICATION = Section("replication", {
+    "replication.csv": "per claim of the paper's Table I (each M1..M5 minus M0 CR_total per scenario, each "
+                       "scenario's best composite score): the paper's number, ours with its interval, the "
+                       "paper's percentile among our one-seed differences, four one-sided Holm-adjusted "
+                       "permutation p-values and the verdict (collision rates trimmed as the paper's)",
+    "replication.md": "the same as Markdown"},
+    replication_section, when="`--compare-paper`, over the columns that are the paper's own models, M0 among them")
+FIGURES = Section("figures", {
+    "distributions.png": "box plots of CR_total, CD and AS over the simulations, a row per scenario",
+    "performance_profiles.png": "per model, the share of simulations with CR_total above each level, a panel per scenario and "
+                                "one over all, with bootstrap bands",
+    "heatmap.png": "CR_total's estimates, models by scenarios, with intervals (several of each)",
+    "training_curves.png": "mean episode reward per iteration, a line per model (the paper's Fig. 5 beside it "
+                           "with `--compare-paper`)",
+    "training_band.png": "mean reward per iteration over seeds, with its 95% band over resampled seeds"}, figures_section, when="not `--no-figures`")
+
+SECTIONS: list[Section] = [
+    STUDY, TABLE, STATISTICS, TRAINING, SEEDS, LATEX, VERDICTS, FINDINGS, MARL_EVAL, CURVE_VERDICTS, REPLICATION,
+    FIGURES,
 ]
+check_sections(SECTIONS)

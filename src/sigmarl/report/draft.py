@@ -1,0 +1,154 @@
+"""The seam of the report: a `Section` is one part of it (a name, the files it may write, and the
+function that builds them from a `Draft`), and `build.SECTIONS` is the list of them in order.
+
+A new section is one module holding its `Section` and one line in `build.SECTIONS`. It reads
+the rows, the options and what earlier sections left on the draft, writes its files through
+`Draft.write` (or `Draft.file` for a figure), and leaves on the draft what later sections or the
+caller need. A file it does not declare is refused, so the reference page of the report's files
+(drawn from the declarations) lists every file a report can hold.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import pandas as pd
+
+from sigmarl.report.compare.verdicts import Design
+from sigmarl.report.table.tables import ResultTable
+
+# Fixed formatting of every CSV's floats: the same rows give byte-identical files.
+FLOAT_FORMAT = "%.10g"
+
+
+@dataclass(frozen=True)
+class BuildOptions:
+    """What `build_report` draws and where.
+
+    out_dir: the folder the files go into; models: the columns, in order (default: every model
+    in the rows, in `order`); trim: drop each evaluation's best and worst simulation from the
+    collision rates; compare_paper: the paper's numbers in parentheses; ci: 95% bootstrap
+    intervals in the table; order: the study's labels in declared order; baseline: what every
+    other column is compared with (default M0, or the first column); design: the verdicts'
+    study parameters (default: the models against the baseline on CR_total).
+    """
+
+    out_dir: Path
+    models: list[str] | None = None
+    trim: bool = False
+    compare_paper: bool = False
+    latex: bool = False
+    ci: bool = False
+    figures: bool = True
+    extra_notes: tuple[str, ...] = ()
+    order: list[str] | None = None
+    baseline: str | None = None
+    design: Design | None = None
+    # per column one training config (the study page: what each column changes); defaults: the
+    # configuration without overrides; commit: the checkout the report is built at
+    configs: dict | None = None
+    defaults: object | None = None
+    commit: str | None = None
+
+
+class UndeclaredFile(RuntimeError):
+    """A section wrote a file its `Section.files` does not name (a fault of the code, not of input)."""
+
+
+@dataclass(frozen=True)
+class Section:
+    """One part of the report.
+
+    name: what the reference calls it; files: each file it may write (a `<part>` in a name
+    stands for any text, e.g. `marl_eval_<models>.json`) and what the file holds; when: when it
+    writes them, for the reference ("" for every report); build: the function of the draft that
+    writes them.
+    """
+
+    name: str
+    files: Mapping[str, str]
+    build: Callable[[Draft], None]
+    when: str = ""
+
+    def declares(self, name: str) -> bool:
+        """Whether `name` is one of this section's files."""
+        return any(re.fullmatch(_pattern(f), name) for f in self.files)
+
+
+def _pattern(declared: str) -> str:
+    """A declared file name as a regular expression: `<part>` matches any text without a slash."""
+    return "".join("[^/]+" if p.startswith("<") else re.escape(p) for p in re.split(r"(<[^>]+>)", declared) if p)
+
+
+@dataclass
+class Draft:
+    """The report as its sections build it."""
+
+    rows: pd.DataFrame
+    options: BuildOptions
+    curves: pd.DataFrame | None
+    models: list[str] = field(default_factory=list)
+    cells: list = field(default_factory=list)
+    summary: pd.DataFrame | None = None
+    composite: pd.DataFrame | None = None
+    table: ResultTable | None = None
+    markdown: str = ""
+    notes: list[str] = field(default_factory=list)
+    improvement: pd.DataFrame | None = None
+    aggregates: pd.DataFrame | None = None
+    statistics: str = ""
+    training: pd.DataFrame | None = None
+    verdicts: pd.DataFrame | None = None
+    verdicts_markdown: str = ""
+    paths: dict[str, Path] = field(default_factory=dict)
+    section: Section | None = None  # the one building now, whose files it may write
+
+    @property
+    def baseline(self) -> str | None:
+        """The compared-with column, if it is one of the report's."""
+        return self.options.baseline if self.options.baseline in self.models else None
+
+    @property
+    def design(self) -> Design:
+        """The study's verdict design over the report's columns (default: against M0, or the first)."""
+        design = self.options.design
+        return replace(design, variants=list(self.models)) if design is not None else \
+            Design(variants=self.models, baseline="M0" if "M0" in self.models else self.models[0])
+
+    def file(self, key: str, name: str) -> Path:
+        """Where the current section's file `name` goes, recorded under `key` (a figure's path)."""
+        if self.section is not None and not self.section.declares(name):
+            raise UndeclaredFile(f"report section {self.section.name!r} wrote {name!r}, which its "
+                                 f"Section.files does not declare ({', '.join(self.section.files)})")
+        self.paths[key] = self.options.out_dir / name
+        return self.paths[key]
+
+    def write(self, key: str, name: str, content: str | pd.DataFrame | dict | None) -> None:
+        """One file of the report: Markdown text, a CSV of a frame (fixed float format, so the
+        same rows give the same bytes) or JSON; None or an empty frame writes nothing."""
+        if content is None or (isinstance(content, pd.DataFrame) and not len(content)):
+            return
+        path = self.file(key, name)
+        if isinstance(content, pd.DataFrame):
+            content.to_csv(path, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        elif isinstance(content, dict):
+            path.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        else:
+            path.write_text(content, encoding="utf-8")
+
+
+def check_sections(sections: list[Section]) -> None:
+    """Every section's name once, and every file declared by one section only."""
+    seen: dict[str, str] = {}
+    names = [s.name for s in sections]
+    if len(set(names)) != len(names):
+        raise ValueError(f"report sections named twice: {sorted({n for n in names if names.count(n) > 1})}")
+    for section in sections:
+        for name in section.files:
+            if name in seen:
+                raise ValueError(f"report file {name!r} declared by sections {seen[name]!r} and {section.name!r}")
+            seen[name] = section.name
