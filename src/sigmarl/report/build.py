@@ -24,8 +24,7 @@ from sigmarl.report.compare.replication import replication_markdown, replication
 from sigmarl.report.compare.verdicts import verdict_table, verdicts_markdown
 from sigmarl.report.draft import BuildOptions, Draft, Section, check_sections
 from sigmarl.report.exports.marl_eval import export_files, interval_data
-from sigmarl.report.seeds.next_seed import next_seed_markdown, prediction_table, slow_seed_table
-from sigmarl.report.seeds.per_seed import seed_table, seeds_markdown
+from sigmarl.report.seeds.sections import SEEDS
 from sigmarl.report.seeds.training import paper_last_rewards, training_markdown, training_summary
 from sigmarl.report.table.aggregate import (
     cells,
@@ -168,20 +167,6 @@ def study_section(d: Draft) -> None:
     d.write("study", "study.md", study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit))
 
 
-def seeds_section(d: Draft) -> None:
-    """Each model-seed's rates, deviation, speed and rewards (seeds.csv, seeds.md)."""
-    seeds = seed_table(d.rows, d.curves, d.models)
-    scenarios = scenario_order(d.rows)
-    prediction = prediction_table(seeds, scenarios)
-    design = d.design
-    slow = slow_seed_table(seeds, {v: design.baseline_of(v) for v in design.compared}, design.slow_seed)
-    d.write("seeds", "seeds.csv", seeds)
-    d.write("seed_prediction", "seed_prediction.csv", prediction)
-    d.write("slow_seeds", "slow_seeds.csv", slow)
-    spread = next_seed_markdown(prediction, slow, scenarios)
-    d.write("seeds_md", "seeds.md", seeds_markdown(seeds, scenarios) + ("\n" + spread if spread else ""))
-
-
 def latex_section(d: Draft) -> None:
     """table.tex; its caption says what each column changes, from the study page's header."""
     o = d.options
@@ -312,15 +297,6 @@ TRAINING = Section("training", {
     "training.md": "the same per model (the paper's Fig. 5 beside it with `--compare-paper`); where the columns "
                    "train on different rewards it opens by saying their rewards are not comparable"},
     training_section, when="training curves (`metrics.csv`) read")
-SEEDS = Section("seeds", {
-    "seeds.csv": "each evaluated model-seed's collision rates per scenario, its worst one, center-line "
-                 "deviation, speed range and reward over three windows of training",
-    "seeds.md": "the same as Markdown; per model with 5 seeds or more, Spearman's correlation of a seed's "
-                "reward with its collisions, and where a next seed will land",
-    "seed_prediction.csv": "per model and scenario: the next seed's 95% prediction interval of CR_total and "
-                           "the seeds' range",
-    "slow_seeds.csv": "with `study.slow_seed`: each variant's slow seeds against its baseline's, Fisher's "
-                      "exact p"}, seeds_section)
 LATEX = Section("latex", {
     "table.tex": "Table I in booktabs; its caption says each column's label and what it changes against the "
                  "baseline, the shared settings and the budget"}, latex_section, when="`--latex`")

@@ -1,0 +1,33 @@
+"""The seeds section of the report: each model-seed's figures and where a next seed will land."""
+
+from __future__ import annotations
+
+from sigmarl.report.draft import Draft, Section
+from sigmarl.report.seeds.next_seed import next_seed_markdown, prediction_table, slow_seed_table
+from sigmarl.report.seeds.per_seed import seed_table, seeds_markdown
+from sigmarl.report.table.aggregate import scenario_order
+
+
+def seeds_section(d: Draft) -> None:
+    """Each model-seed's rates, deviation, speed and rewards (seeds.csv, seeds.md)."""
+    seeds = seed_table(d.rows, d.curves, d.models)
+    scenarios = scenario_order(d.rows)
+    prediction = prediction_table(seeds, scenarios)
+    design = d.design
+    slow = slow_seed_table(seeds, {v: design.baseline_of(v) for v in design.compared}, design.slow_seed)
+    d.write("seeds", "seeds.csv", seeds)
+    d.write("seed_prediction", "seed_prediction.csv", prediction)
+    d.write("slow_seeds", "slow_seeds.csv", slow)
+    spread = next_seed_markdown(prediction, slow, scenarios)
+    d.write("seeds_md", "seeds.md", seeds_markdown(seeds, scenarios) + ("\n" + spread if spread else ""))
+
+
+SEEDS = Section("seeds", {
+    "seeds.csv": "each evaluated model-seed's collision rates per scenario, its worst one, center-line "
+                 "deviation, speed range and reward over three windows of training",
+    "seeds.md": "the same as Markdown; per model with 5 seeds or more, Spearman's correlation of a seed's "
+                "reward with its collisions, and where a next seed will land",
+    "seed_prediction.csv": "per model and scenario: the next seed's 95% prediction interval of CR_total and "
+                           "the seeds' range",
+    "slow_seeds.csv": "with `study.slow_seed`: each variant's slow seeds against its baseline's, Fisher's "
+                      "exact p"}, seeds_section)
