@@ -1,11 +1,37 @@
-"""The seeds section of the report: each model-seed's figures and where a next seed will land."""
+"""The seeds' sections of the report: the training curves' summary, each model-seed's figures
+and where a next seed will land."""
 
 from __future__ import annotations
 
 from sigmarl.report.draft import Draft, Section
 from sigmarl.report.seeds.next_seed import next_seed_markdown, prediction_table, slow_seed_table
 from sigmarl.report.seeds.per_seed import seed_table, seeds_markdown
+from sigmarl.report.seeds.training import paper_last_rewards, training_markdown, training_summary
 from sigmarl.report.table.aggregate import scenario_order
+from sigmarl.report.table.header import reward_differs
+from sigmarl.report.table.paper import paper_curves
+
+
+def training_section(d: Draft) -> None:
+    """The training curves' summary (training.csv, training.md), curves given."""
+    if d.curves is None:
+        return
+    d.training = training_summary(d.curves, d.models)
+    last = paper_last_rewards(paper_curves()) if d.options.compare_paper else None
+    d.write("training", "training.csv", d.training)
+    text = training_markdown(d.training, last)
+    configs = [d.options.configs[m] for m in d.models if m in (d.options.configs or {})]
+    if differ := reward_differs(configs):  # sums of different reward functions
+        text = (f"Not comparable across columns: they train on different rewards ({', '.join(differ)}); "
+                "each column's rewards compare only with its own seeds.\n\n") + text
+    d.write("training_md", "training.md", text)
+
+
+TRAINING = Section("training", {
+    "training.csv": "per seed: iterations, compute time, last and best reward",
+    "training.md": "the same per model (the paper's Fig. 5 beside it with `--compare-paper`); where the columns "
+                   "train on different rewards it opens by saying their rewards are not comparable"},
+    training_section, when="training curves (`metrics.csv`) read")
 
 
 def seeds_section(d: Draft) -> None:
