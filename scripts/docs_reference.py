@@ -154,12 +154,13 @@ def report_files() -> str:
     declaration (`report.draft.Section`): a file no section declares cannot be written."""
     from sigmarl.report.build import SECTIONS
 
-    rows = ["| section | when | file | what it holds |", "|---|---|---|---|"]
+    out = []
     for section in SECTIONS:
-        for i, (name, what) in enumerate(section.files.items()):
-            head = (f"`{section.name}`", _cell(section.when or "always")) if i == 0 else ("", "")
-            rows.append(f"| {head[0]} | {head[1]} | `{name}` | {_cell(what)} |")
-    return "\n".join(rows) + "\n"
+        out += [f"### `{section.name}`", "", f"Written {section.when or 'in every report'}.", "",
+                "| file | what it holds |", "|---|---|"]
+        out += [f"| `{name}` | {_cell(what)} |" for name, what in section.files.items()]
+        out.append("")
+    return "\n".join(out)
 
 
 PARTS = {"cli": cli, "config": config, "run-folder": run_folder, "presets": presets, "scenarios": scenarios,

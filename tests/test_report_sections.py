@@ -70,7 +70,7 @@ def test_the_reference_lists_every_declared_file_from_the_declarations():
     spec.loader.exec_module(docs)
     table = docs.report_files()
     for section in SECTIONS:
-        assert f"| `{section.name}` |" in table
+        assert f"### `{section.name}`" in table
         for name in section.files:
             assert f"| `{name}` |" in table
     page = (ROOT / "docs" / "reference" / "outputs.md").read_text(encoding="utf-8")

@@ -65,8 +65,8 @@ class Section:
 
     name: what the reference calls it; files: each file it may write (a `<part>` in a name
     stands for any text, e.g. `marl_eval_<models>.json`) and what the file holds; when: when it
-    writes them, for the reference ("" for every report); build: the function of the draft that
-    writes them.
+    writes them, as the reference reads it after "Written" ("with `--latex`"; "" for every
+    report); build: the function of the draft that writes them.
     """
 
     name: str

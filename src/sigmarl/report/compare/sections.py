@@ -86,7 +86,7 @@ VERDICTS = Section("verdicts", {
                     "with its interval, permutation and Welch p-values, the verdict and the seeds it needs",
     "verdicts.md": "the same as Markdown, a factorial study's interactions under it",
     "interactions.csv": "a factorial study's interactions (difference of differences)"},
-    verdicts_section, when="a baseline and a variant to compare")
+    verdicts_section, when="with a baseline and a variant to compare")
 
 FINDINGS = Section("findings", {
     "findings.md": "the study's figures in sentences: seeds per model, the baseline's worst collision rate and "
@@ -97,7 +97,7 @@ CURVE_VERDICTS = Section("curve_verdicts", {
                           "(Welch, Holm-adjusted)",
     "curve_verdicts.md": "the same as Markdown, and where the curves part",
     "paper_seeds.csv": "with `--compare-paper`: whether the paper's one seed could be one of ours"},
-    curve_verdicts_section, when="training curves read")
+    curve_verdicts_section, when="when training curves are read")
 
 REPLICATION = Section("replication", {
     "replication.csv": "per claim of the paper's Table I (each M1..M5 minus M0 CR_total per scenario, each "
@@ -105,4 +105,4 @@ REPLICATION = Section("replication", {
                        "paper's percentile among our one-seed differences, four one-sided Holm-adjusted "
                        "permutation p-values and the verdict (collision rates trimmed as the paper's)",
     "replication.md": "the same as Markdown"},
-    replication_section, when="`--compare-paper`, over the columns that are the paper's own models, M0 among them")
+    replication_section, when="with `--compare-paper`, over the columns that are the paper's own models, M0 among them")

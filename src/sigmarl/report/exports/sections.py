@@ -59,7 +59,7 @@ def figures_section(d: Draft) -> None:
 
 LATEX = Section("latex", {
     "table.tex": "Table I in booktabs; its caption says each column's label and what it changes against the "
-                 "baseline, the shared settings and the budget"}, latex_section, when="`--latex`")
+                 "baseline, the shared settings and the budget"}, latex_section, when="with `--latex`")
 
 MARL_EVAL = Section("marl_eval", {
     "marl_eval.json": "the rows in marl-eval 0.0.4's format, the seeds every model has",
@@ -74,4 +74,4 @@ FIGURES = Section("figures", {
     "heatmap.png": "CR_total's estimates, models by scenarios, with intervals (several of each)",
     "training_curves.png": "mean episode reward per iteration, a line per model (the paper's Fig. 5 beside it "
                            "with `--compare-paper`)",
-    "training_band.png": "mean reward per iteration over seeds, with its 95% band over resampled seeds"}, figures_section, when="not `--no-figures`")
+    "training_band.png": "mean reward per iteration over seeds, with its 95% band over resampled seeds"}, figures_section, when="unless `--no-figures`")

@@ -31,7 +31,7 @@ TRAINING = Section("training", {
     "training.csv": "per seed: iterations, compute time, last and best reward",
     "training.md": "the same per model (the paper's Fig. 5 beside it with `--compare-paper`); where the columns "
                    "train on different rewards it opens by saying their rewards are not comparable"},
-    training_section, when="training curves (`metrics.csv`) read")
+    training_section, when="when training curves (`metrics.csv`) are read")
 
 
 def seeds_section(d: Draft) -> None:

@@ -84,7 +84,7 @@ STUDY = Section("study", {
     "study.md": "what the report compares: per column its label, fingerprint, seeds and the training settings "
                 "it changes against the baseline; the settings every column shares where they are not the "
                 "defaults, a sweep's command line included; the training and evaluation budget; the commit "
-                "the report was built at"}, study_section, when="the columns' training configs known")
+                "the report was built at"}, study_section, when="when the columns' training configs are known (by `sigmarl report`, always)")
 
 TABLE = Section("table", {
     "table.md": "the same header as `study.md`, less the commit, then Table I: each metric per scenario and "
@@ -99,4 +99,4 @@ STATISTICS = Section("statistics", {
                        "column, with its interval",
     "improvement_overall.csv": "the same averaged over scenarios, whole seeds resampled",
     "aggregate_scores.csv": "each model's composite score over scenarios: mean and IQM, with intervals",
-    "statistics.md": "the three files above as Markdown"}, statistics_section, when="two columns or more")
+    "statistics.md": "the three files above as Markdown"}, statistics_section, when="with two columns or more")
