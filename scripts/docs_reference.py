@@ -140,13 +140,18 @@ def _room(name: str) -> str:
 def floors() -> str:
     """The floors of the imports, top first (an import points down the table), and the imports
     allowed up a floor with their reasons, from `sigmarl.floors`."""
-    from sigmarl.floors import FLOORS, UPWARD
+    from sigmarl.floors import FLOORS, REPORT_FLOORS, UPWARD
 
     rows = ["| floor | rooms | what lives here |", "|---|---|---|"]
     rows += [f"| {i} {_cell(f.name)} | {', '.join(_room(r) for r in f.rooms)} | {_cell(f.holds)} |"
              for i, f in reversed(list(enumerate(FLOORS)))]
     up = [f"- `{a}` imports `{b}`: {_cell(why)}" for (a, b), why in UPWARD.items()]
-    return "\n".join([*rows, "", "Imports up a floor: " + ("none." if not up else f"{len(up)}, each for a reason:"), *up]) + "\n"
+    report = ["| floor inside `report/` | rooms | what lives here |", "|---|---|---|"]
+    report += [f"| report {i} {_cell(f.name)} | {', '.join(_room(r) for r in f.rooms)} | {_cell(f.holds)} |"
+               for i, f in reversed(list(enumerate(REPORT_FLOORS)))]
+    return "\n".join([*rows, "", "Imports up a floor: " + ("none." if not up else f"{len(up)}, each for a reason:"), *up,
+                      "", "Inside `report/`, its groups stand on floors of their own, by the same rule "
+                      "and with no import up:", "", *report]) + "\n"
 
 
 def report_files() -> str:

@@ -13,7 +13,7 @@ import ast
 from pathlib import Path
 from typing import NamedTuple
 
-from sigmarl.floors import FLOORS, UPWARD, floor_of
+from sigmarl.floors import FLOORS, REPORT_FLOORS, UPWARD, floor_of
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
@@ -110,9 +110,9 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
-def upward(found: list[Arrow], floor_of=floor_of, allowed=UPWARD) -> list[str]:
+def upward(found: list[Arrow], floor_of=floor_of, allowed=UPWARD, floors=FLOORS) -> list[str]:
     """Each arrow to a higher floor that `allowed` does not name, as `file:line: a -> b (...)`."""
-    names = [f.name for f in FLOORS]
+    names = [f.name for f in floors]
     out = []
     for a in found:
         low, high = floor_of(a.source), floor_of(a.target)
@@ -146,6 +146,24 @@ def test_every_module_is_on_one_floor_and_every_room_exists():
     assert [r for r in rooms if r not in modules] == []  # a stale room fails here
     used = {(a.source, a.target) for a in arrows(SRC)}
     assert len(UPWARD) <= 3 and all(pair in used and why for pair, why in UPWARD.items())
+
+
+def _report_floor(module: str) -> int | None:
+    inside = module == "sigmarl.report" or module.startswith("sigmarl.report.")
+    return floor_of(module, REPORT_FLOORS) if inside else None
+
+
+def test_the_reports_groups_import_down_their_own_floors():
+    """Inside the report the same rule, over `REPORT_FLOORS`: a section module stands above what
+    it draws, the seam above the groups, and no group reaches up into another (none allowed)."""
+    modules = [m for m in _modules(SRC) if _report_floor(m) is not None]
+    assert len(modules) > 30 and all(_report_floor(m) is not None for m in modules)
+    rooms = [room for f in REPORT_FLOORS for room in f.rooms]
+    assert [r for r in rooms if r not in _modules(SRC)] == []  # a stale room fails here
+    assert {m for m in modules if _report_floor(m) == len(REPORT_FLOORS) - 1} == \
+        {"sigmarl.report", "sigmarl.report.build", "sigmarl.report.command"}  # the top: nothing else strays there
+    bad = upward(arrows(SRC), floor_of=_report_floor, allowed={}, floors=REPORT_FLOORS)
+    assert bad == [], "imports up the report's floors:\n" + "\n".join(bad)
 
 
 def test_a_package_split_across_floors_opens_with_no_imports():

@@ -10,13 +10,13 @@ import pandas as pd
 import pytest
 
 from sigmarl.cli import main
-from sigmarl.report.seeds.training import (
+from sigmarl.report.table.paper import paper_curves
+from sigmarl.report.table.training import (
     LAST,
     paper_last_rewards,
     training_markdown,
     training_summary,
 )
-from sigmarl.report.table.paper import paper_curves
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 

@@ -59,11 +59,28 @@ FLOORS: tuple[Floor, ...] = (
 # (importing module, imported module) -> why it may import up a floor; at most three.
 UPWARD: dict[tuple[str, str], str] = {}
 
+# Inside the report (one room of the floors above), its groups in floors of their own, by the
+# same rule: a module imports from its own group's floor or one below.
+REPORT_FLOORS: tuple[Floor, ...] = (
+    Floor("inputs", "what a report is built from (run folders, columns, coverage) and how numbers "
+          "are written", ("sigmarl.report.inputs", "sigmarl.report.format")),
+    Floor("table", "Table I, its numbers and notes, the training curves' summary", ("sigmarl.report.table",)),
+    Floor("compare", "verdicts, interactions, curves compared, replication, findings",
+          ("sigmarl.report.compare",)),
+    Floor("seeds", "each seed's figures, the next seed, `--plan`, `seeds=auto`'s rounds",
+          ("sigmarl.report.seeds",)),
+    Floor("exports", "figures and marl-eval's JSON", ("sigmarl.report.exports",)),
+    Floor("seam", "`Section`, `Draft`, `BuildOptions`", ("sigmarl.report.draft",)),
+    Floor("sections", "each group's sections", ("sigmarl.report.sections",)),
+    Floor("build and command", "`build_report` and its registry of sections, the command, the package's "
+          "own names (`__init__.py`)", ("sigmarl.report.build", "sigmarl.report.command", "sigmarl.report")),
+)
 
-def floor_of(module: str) -> int | None:
-    """The index in FLOORS of the floor `module` is on (None: on none)."""
+
+def floor_of(module: str, floors: tuple[Floor, ...] = FLOORS) -> int | None:
+    """The index in `floors` of the floor `module` is on (None: on none)."""
     best, found = -1, None
-    for i, floor in enumerate(FLOORS):
+    for i, floor in enumerate(floors):
         for room in floor.rooms:
             holds = module == room or (room != "sigmarl" and module.startswith(room + "."))
             if holds and len(room) > best:

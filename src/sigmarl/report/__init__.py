@@ -1,6 +1,8 @@
-"""The study's report: aggregation, composite score, Table I, figures.
+"""The study's report: evaluation rows in, Table I, comparisons, seeds, figures and exports out.
 
-Figures live in `sigmarl.report.exports.figures` (imported on use, since matplotlib is slow to load).
+Grouped by what a reader sees (`table`, `compare`, `seeds`, `exports`, over the `inputs` it is
+built from); `build.SECTIONS` lists the sections that write the files (`draft.Section`).
+Figures live in `sigmarl.report.exports.figures` (imported on use: matplotlib is slow to load).
 """
 
 from sigmarl.report.build import BuildOptions, Report, build_report

@@ -14,12 +14,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.report.compare.sections import CURVE_VERDICTS, FINDINGS, REPLICATION, VERDICTS
 from sigmarl.report.draft import BuildOptions, Draft, Section, check_sections
-from sigmarl.report.exports.sections import FIGURES, LATEX, MARL_EVAL
-from sigmarl.report.seeds.sections import SEEDS, TRAINING
+from sigmarl.report.sections.compare import CURVE_VERDICTS, FINDINGS, REPLICATION, VERDICTS
+from sigmarl.report.sections.exports import FIGURES, LATEX, MARL_EVAL
+from sigmarl.report.sections.seeds import SEEDS, TRAINING
+from sigmarl.report.sections.table import STATISTICS, STUDY, TABLE
 from sigmarl.report.table.aggregate import model_order, validate_rows
-from sigmarl.report.table.sections import STATISTICS, STUDY, TABLE
 from sigmarl.report.table.tables import ResultTable
 
 

@@ -26,7 +26,7 @@ import pandas as pd
 from sigmarl.ablation import OBS_FLAGS
 from sigmarl.report.compare.verdicts import Design
 from sigmarl.report.format import signed
-from sigmarl.report.seeds.training import LAST
+from sigmarl.report.table.training import LAST
 from sigmarl.stats.intervals import t_critical
 from sigmarl.stats.tests import holm, welch
 

@@ -1,2 +1,2 @@
-"""Seeds and plans: each model-seed's figures and its training curve, where the next seed will
-land, `--plan` and `seeds=auto`'s rounds."""
+"""Seeds and plans: each model-seed's figures, where the next seed will land, `--plan` and
+`seeds=auto`'s rounds."""

@@ -15,8 +15,8 @@ from scipy import stats
 
 from sigmarl.metrics import label, scaled
 from sigmarl.report.format import p_text, signed
-from sigmarl.report.seeds.training import LAST
 from sigmarl.report.table.aggregate import model_order, scenario_order
+from sigmarl.report.table.training import LAST
 
 RATES = ["CR_total", "CR_AA", "CR_AL"]
 MIN_SEEDS = 5  # fewer seeds than this give no useful rank correlation

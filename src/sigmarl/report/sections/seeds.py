@@ -6,10 +6,10 @@ from __future__ import annotations
 from sigmarl.report.draft import Draft, Section
 from sigmarl.report.seeds.next_seed import next_seed_markdown, prediction_table, slow_seed_table
 from sigmarl.report.seeds.per_seed import seed_table, seeds_markdown
-from sigmarl.report.seeds.training import paper_last_rewards, training_markdown, training_summary
 from sigmarl.report.table.aggregate import scenario_order
 from sigmarl.report.table.header import reward_differs
 from sigmarl.report.table.paper import paper_curves
+from sigmarl.report.table.training import paper_last_rewards, training_markdown, training_summary
 
 
 def training_section(d: Draft) -> None:

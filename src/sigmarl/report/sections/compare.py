@@ -16,9 +16,9 @@ from sigmarl.report.compare.interactions import interaction_table, interactions_
 from sigmarl.report.compare.replication import replication_markdown, replication_table
 from sigmarl.report.compare.verdicts import verdict_table, verdicts_markdown
 from sigmarl.report.draft import Draft, Section
-from sigmarl.report.seeds.training import paper_last_rewards
 from sigmarl.report.table.aggregate import trim_collisions
 from sigmarl.report.table.paper import paper_curves
+from sigmarl.report.table.training import paper_last_rewards
 
 
 def verdicts_section(d: Draft) -> None:
