@@ -9,8 +9,8 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-from probe import ROOT as REPO
-from probe import SMOKE, TINY_EVAL, sigmarl
+from probe_kit import ROOT as REPO
+from probe_kit import SMOKE, TINY_EVAL, sigmarl
 
 ROOT: Path = Path("/nonexistent")  # set by probe.main to a folder of the round's temporary one
 ITERATIONS = 8

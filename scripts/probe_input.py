@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 import probe_fixtures as fx
-from probe import SMOKE, TRACKERS, Probe, refusal
+from probe_kit import SMOKE, TRACKERS, Probe, refusal
 
 RESULTS = ["--from", "results"]
 

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import probe_fixtures as fx
-from probe import SMOKE, TRACKERS, Probe, files, one_line, refusal, sigmarl
+from probe_kit import SMOKE, TRACKERS, Probe, files, one_line, refusal, sigmarl
 
 BLOCK = ["train", *SMOKE, "seeds=[0,1]", f"ppo.iterations={fx.ITERATIONS}", "ppo.checkpoint_every=1", "runs_root=runs"]
 

@@ -8,7 +8,7 @@ import signal
 from pathlib import Path
 
 import probe_fixtures as fx
-from probe import SMOKE, TINY_EVAL, Probe, last_line, one_line, sigmarl, start, wait_for
+from probe_kit import SMOKE, TINY_EVAL, Probe, last_line, one_line, sigmarl, start, wait_for
 
 # two seeds, two worker slots: each job is a loky worker, so that killing one spares the sweep
 PARALLEL = ["sweep", "study=quick", "models=[M0]", "ppo=smoke", "threads=1", *TINY_EVAL, fx.STORE, "runs_root=runs",
