@@ -9,7 +9,7 @@ findings, the training summary before the curve verdicts.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -20,25 +20,10 @@ from sigmarl.report.sections.exports import FIGURES, LATEX, MARL_EVAL
 from sigmarl.report.sections.seeds import SEEDS, TRAINING
 from sigmarl.report.sections.table import STATISTICS, STUDY, TABLE
 from sigmarl.report.table.aggregate import model_order, validate_rows
-from sigmarl.report.table.tables import ResultTable
 
-
-@dataclass
-class Report:
-    """What `build_report` made: the Markdown to print, the frames behind it, the files."""
-
-    markdown: str
-    table: ResultTable
-    summary: pd.DataFrame  # one row per (scenario, model, metric), see `aggregate`
-    composite: pd.DataFrame  # scenario, model, CS, note, ci_low, ci_high
-    improvement: pd.DataFrame  # see `scores.improvement`
-    aggregates: pd.DataFrame  # see `scores.aggregate_scores`
-    statistics: str  # Markdown of the two frames above
-    training: pd.DataFrame | None = None  # see `training.training_summary` (curves given)
-    paths: dict[str, Path] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
-    verdicts: pd.DataFrame | None = None  # see `verdicts.verdict_table` (a baseline and a model given)
-    verdicts_markdown: str = ""
+# What build_report returns: the draft its sections finished (the Markdown to print, the frames
+# behind it, the files written).
+Report = Draft
 
 
 def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame | None = None) -> Report:
@@ -61,9 +46,7 @@ def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame
         draft.section = section
         section.build(draft)
     draft.section = None
-    return Report(draft.markdown, draft.table, draft.summary, draft.composite, draft.improvement,
-                  draft.aggregates, draft.statistics, draft.training, draft.paths, draft.notes,
-                  draft.verdicts, draft.verdicts_markdown)
+    return draft
 
 
 SECTIONS: list[Section] = [

@@ -86,25 +86,25 @@ def _pattern(declared: str) -> str:
 
 @dataclass
 class Draft:
-    """The report as its sections build it."""
+    """The report as its sections build it, and, once they are done, what `build_report` returns."""
 
     rows: pd.DataFrame
     options: BuildOptions
-    curves: pd.DataFrame | None
-    models: list[str] = field(default_factory=list)
-    cells: list = field(default_factory=list)
-    summary: pd.DataFrame | None = None
-    composite: pd.DataFrame | None = None
+    curves: pd.DataFrame | None  # model, seed, iteration, reward (None: no training curves read)
+    models: list[str] = field(default_factory=list)  # the columns, in order
+    cells: list = field(default_factory=list)  # see `table.aggregate.cells`
+    summary: pd.DataFrame | None = None  # one row per (scenario, model, metric)
+    composite: pd.DataFrame | None = None  # scenario, model, CS, note, ci_low, ci_high
     table: ResultTable | None = None
-    markdown: str = ""
+    markdown: str = ""  # table.md, what the command prints
     notes: list[str] = field(default_factory=list)
-    improvement: pd.DataFrame | None = None
-    aggregates: pd.DataFrame | None = None
-    statistics: str = ""
-    training: pd.DataFrame | None = None
-    verdicts: pd.DataFrame | None = None
+    improvement: pd.DataFrame | None = None  # see `table.scores.improvement`
+    aggregates: pd.DataFrame | None = None  # see `table.scores.aggregate_scores`
+    statistics: str = ""  # Markdown of the two frames above
+    training: pd.DataFrame | None = None  # see `table.training.training_summary`
+    verdicts: pd.DataFrame | None = None  # see `compare.verdicts.verdict_table`
     verdicts_markdown: str = ""
-    paths: dict[str, Path] = field(default_factory=dict)
+    paths: dict[str, Path] = field(default_factory=dict)  # each file written, by its key
     section: Section | None = None  # the one building now, whose files it may write
 
     @property
