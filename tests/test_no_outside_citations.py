@@ -1,6 +1,6 @@
 """Comments and docstrings in src/, conf/ and tests/ state facts or link a docs page; none cites
 a document the repository does not have (a spec's sections, a study file, an issue number);
-a quoted file name is one the code writes (the report's "study.md")."""
+a quoted file name (in quotes or backticks) is one the code writes (the report's "study.md")."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-CITATION = re.compile(r'spec §|§\s*\d|(?<![\w/"-])(?:study|environment|DESIGN)\.md\b|\bissue\s*#?\d+|\(#\d+\)|'
+CITATION = re.compile(r'spec §|§\s*\d|(?<![\w/"`-])(?:study|environment|DESIGN)\.md\b|\bissue\s*#?\d+|\(#\d+\)|'
                       r"\bthe (?:reliability |statistics )?issue\b|\bissue's\b|\bthe spec\b", re.I)
 THIS = Path(__file__).resolve()
 
@@ -32,5 +32,5 @@ def test_the_pattern_catches_what_it_must():
                  "# the issue's own example"):
         assert CITATION.search(line), line
     for line in ("# the paper's Table I", "docs/results/paper-study.md", "spec = importlib.util.spec_from_file_location(...)", "# tissue",
-                 'd.write("study", "study.md", text)'):  # a file the code writes, quoted
+                 'd.write("study", "study.md", text)', "the same header as `study.md`"):  # a file the code writes, quoted
         assert not CITATION.search(line), line

@@ -50,7 +50,7 @@ def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame
 
 
 SECTIONS: list[Section] = [
-    STUDY,  # study.md
+    STUDY,  # `study.md`
     TABLE,  # table.md, table.csv, summary.csv, composite_scores.csv, matrix.md
     STATISTICS,  # improvement, aggregate scores (needs TABLE's cells and composite scores)
     TRAINING,  # training.csv, training.md
