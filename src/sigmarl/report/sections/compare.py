@@ -22,8 +22,7 @@ from sigmarl.report.table.training import paper_last_rewards
 
 
 def verdicts_section(d: Draft) -> None:
-    """One verdict per comparison (verdicts.md, verdicts.csv) and, for a factorial study, its
-    interactions (interactions.csv, under the verdicts in verdicts.md)."""
+    """One verdict per comparison and, for a factorial study, its interactions."""
     design = d.design
     if design.baseline not in d.models or not design.compared:
         return
@@ -39,7 +38,7 @@ def verdicts_section(d: Draft) -> None:
 
 
 def findings_section(d: Draft) -> None:
-    """What the study found, in sentences of its own figures (findings.md; `report.compare.findings`)."""
+    """What the study found, in sentences of its own figures."""
     if d.summary is None or not len(d.summary):
         return
     d.write("findings", "findings.md", findings_markdown(d.summary, d.verdicts, d.models, d.baseline,
@@ -47,8 +46,7 @@ def findings_section(d: Draft) -> None:
 
 
 def curve_verdicts_section(d: Draft) -> None:
-    """When the compared training curves part, and (compare_paper) whether the paper's one
-    seed could be one of ours: curve_verdicts.md, curve_verdicts.csv and paper_seeds.csv."""
+    """When the compared training curves part, and whether the paper's one seed could be ours."""
     if d.training is None:
         return
     design = d.design
@@ -67,9 +65,8 @@ def curve_verdicts_section(d: Draft) -> None:
 
 
 def replication_section(d: Draft) -> None:
-    """(compare_paper) Does each claim of the paper's Table I reproduce: replication.csv and
-    replication.md (`report.compare.replication`), over the columns that are the paper's own models
-    (label and observation strategies both, so no other design is read as the paper's)."""
+    """Does each claim of the paper's Table I reproduce, over the columns that are the paper's own
+    models (label and observation strategies both, so no other design is read as the paper's)."""
     if not d.options.compare_paper or "M0" not in d.models:
         return
     obs = d.rows.drop_duplicates("model").set_index("model")["obs"].astype(str)

@@ -11,7 +11,7 @@ from sigmarl.report.table.tables import to_latex
 
 
 def latex_section(d: Draft) -> None:
-    """table.tex; its caption says what each column changes, from the study page's header."""
+    """Table I in LaTeX; its caption says what each column changes, from the study page's header."""
     o = d.options
     if not o.latex:
         return
@@ -22,9 +22,7 @@ def latex_section(d: Draft) -> None:
 
 
 def marl_eval_section(d: Draft) -> None:
-    """The rows as marl-eval's JSON, split by seed set so each file loads whole (marl_eval.json:
-    the seeds common to all models), and its intervals with every seed and the real number of
-    seeds (marl_eval_intervals.json; `sigmarl.report.exports.marl_eval`)."""
+    """The rows as marl-eval's JSON, split by seed set so that each file loads whole."""
     chosen = d.rows[d.rows["model"].isin(d.models)]
     for name, data in export_files(chosen, d.models, d.curves).items():
         d.write(name.removesuffix(".json"), name, data)
@@ -32,8 +30,7 @@ def marl_eval_section(d: Draft) -> None:
 
 
 def figures_section(d: Draft) -> None:
-    """distributions.png, performance_profiles.png, heatmap.png (several scenarios and models),
-    and training_curves.png and training_band.png (curves given)."""
+    """The report's figures (matplotlib, imported here only)."""
     if not d.options.figures:
         return
     # matplotlib is imported only when drawing: table-only reports stay quick to start

@@ -13,7 +13,7 @@ from sigmarl.report.table.training import paper_last_rewards, training_markdown,
 
 
 def training_section(d: Draft) -> None:
-    """The training curves' summary (training.csv, training.md), curves given."""
+    """The training curves' summary."""
     if d.curves is None:
         return
     d.training = training_summary(d.curves, d.models)
@@ -35,7 +35,7 @@ TRAINING = Section("training", {
 
 
 def seeds_section(d: Draft) -> None:
-    """Each model-seed's rates, deviation, speed and rewards (seeds.csv, seeds.md)."""
+    """Each model-seed's rates, deviation, speed and rewards, and where a next seed will land."""
     seeds = seed_table(d.rows, d.curves, d.models)
     scenarios = scenario_order(d.rows)
     prediction = prediction_table(seeds, scenarios)

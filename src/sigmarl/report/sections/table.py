@@ -30,7 +30,7 @@ TABLE_HEADING = "## Table"
 
 
 def study_section(d: Draft) -> None:
-    """What the report compares (the study page, `report.table.header`), the columns' configs given."""
+    """What the report compares (the study page)."""
     o = d.options
     if o.configs is None or o.defaults is None:
         return
@@ -38,8 +38,7 @@ def study_section(d: Draft) -> None:
 
 
 def table_section(d: Draft) -> None:
-    """Table I (table.md, table.csv), its cells (summary.csv) and composite scores with their
-    intervals (composite_scores.csv); the matrix view of the same table (matrix.md)."""
+    """Table I, its cells and composite scores with their intervals, and its matrix view."""
     o = d.options
     d.cells = cells(d.rows, d.models, trim=o.trim)
     d.summary = summarise(d.cells, trim=o.trim)
@@ -64,9 +63,8 @@ def table_section(d: Draft) -> None:
 
 
 def statistics_section(d: Draft) -> None:
-    """Probability of improvement and aggregate scores over scenarios: statistics.md,
-    improvement.csv, improvement_overall.csv and aggregate_scores.csv (`sigmarl.report.table.scores`);
-    none for a one-column report, which has nothing to compare."""
+    """Probability of improvement and aggregate scores over scenarios (a one-column report has
+    nothing to compare)."""
     if len(d.models) < 2:
         return
     d.improvement = improvement(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
