@@ -45,6 +45,33 @@ def test_sections_are_named_once_and_each_file_has_one_section():
         check_sections([one, Section("a", {"b.md": ""}, lambda d: None)])
 
 
+def _spread(d: Draft) -> None:
+    """A section of a user's own: each scenario's widest gap of CR_total between two columns."""
+    cr = d.summary[d.summary["metric"] == "CR_total"]
+    gap = cr.groupby("scenario", sort=False)["mean"].agg(lambda m: m.max() - m.min())
+    d.write("spread", "spread.md", "".join(f"- {s}: {v:.3f} pp\n" for s, v in gap.items()))
+
+
+SPREAD = Section("spread", {"spread.md": "per scenario, the widest gap of CR_total between columns"}, _spread)
+
+
+def test_a_new_section_is_one_declaration_and_one_line_in_the_list(tmp_path):
+    """Registered after the table (whose summary it reads), it writes its declared file, and the
+    gaps it prints are those of the rows themselves (per model: the mean of its seed means)."""
+    results = read_results(ROOT / "results" / "paper-budget")
+    rows = results.rows[results.rows["model"].isin(["M0", "M4"]) & results.rows["seed"].isin([0, 1])]
+    report = build_report(rows, BuildOptions(out_dir=tmp_path, figures=False), sections=[*SECTIONS[:2], SPREAD])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["composite_scores.csv", "matrix.md", "spread.md",
+                                                       "summary.csv", "table.csv", "table.md"]
+    seed_means = rows.groupby(["scenario", "model", "seed"])["CR_total"].mean().groupby(["scenario", "model"]).mean()
+    gaps = (seed_means.groupby("scenario").max() - seed_means.groupby("scenario").min()) * 100
+    lines = report.paths["spread"].read_text().splitlines()
+    assert len(lines) == 4
+    for line in lines:
+        scenario, value = line[2:].split(": ")
+        assert float(value.removesuffix(" pp")) == pytest.approx(gaps[scenario], abs=5e-4)
+
+
 def test_every_file_a_whole_report_writes_is_declared_by_its_section(tmp_path):
     """The committed study, two models and three seeds each, every option on: each file on disk is
     one a section declares (so the reference page drawn from the declarations lists it), and every

@@ -26,9 +26,10 @@ from sigmarl.report.table.aggregate import model_order, validate_rows
 Report = Draft
 
 
-def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame | None = None) -> Report:
+def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame | None = None,
+                 sections: list[Section] | None = None) -> Report:
     """Aggregate evaluation rows into the paper's Table I and the report's other files in
-    `options.out_dir`, one section after another (`SECTIONS`).
+    `options.out_dir`, one section after another (`sections`, default `SECTIONS`).
 
     rows: one per (model, obs, seed, scenario, simulation) with CR_AA, CR_AL, CR_total
     (fractions of steps), CD (cm) and AS (m/s); curves: (model, iteration, reward[, seed]) for
@@ -42,7 +43,7 @@ def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame
     draft = Draft(rows, options, curves if curves is not None and len(curves) else None)
     draft.models = model_order(rows, options.models, options.order)
     options.out_dir.mkdir(parents=True, exist_ok=True)
-    for section in SECTIONS:
+    for section in SECTIONS if sections is None else sections:
         draft.section = section
         section.build(draft)
     draft.section = None
