@@ -264,8 +264,7 @@ class TrafficScenario(Resets, StepPhases, BaseScenario):
         return self.rew[:, self._agent_index[agent.name]]
 
     def done(self) -> torch.Tensor:
-        if self.obs is None:
-            self._refresh()
+        self.current_observation()  # resets still pending are carried out first
         return self.terminated
 
     def info(self, agent: Agent) -> dict[str, torch.Tensor]:
