@@ -138,18 +138,18 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> None:
+    if args.plan and not args.source:
+        raise SigmarlError("--plan reads a results folder: give it with --from FOLDER")
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
+    from sigmarl.compose import compose_config
+
     if args.plan:
-        if not args.source:
-            raise SigmarlError("--plan reads a results folder: give it with --from FOLDER")
-        from sigmarl.compose import compose_config
         from sigmarl.report.seeds.plan import plan_from_folder
 
         study = compose_config(args.overrides).study
         print(plan_from_folder([Path(s) for s in args.source], args.models.split(",") if args.models else None,
                                study=study), end="")
         return
-    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
-    from sigmarl.compose import compose_config
     from sigmarl.tracking.store import missing_store
 
     cfg = compose_config(args.overrides)
@@ -269,15 +269,11 @@ class _KeysHelp(argparse.RawDescriptionHelpFormatter):
     source is read only when the help is printed)."""
 
     def add_text(self, text: str | None) -> None:
-        if text == _KEYS:
+        if text in (_KEYS, _EVAL_KEYS):
             # lazy: config_help's dataclass introspection costs `sigmarl --help` a third of its start-up
             from sigmarl.config_help import keys_epilog
 
-            text = keys_epilog()
-        elif text == _EVAL_KEYS:
-            from sigmarl.config_help import keys_epilog
-
-            text = keys_epilog("eval.")
+            text = keys_epilog("eval." if text == _EVAL_KEYS else "")
         super().add_text(text)
 
 

@@ -67,16 +67,12 @@ def write_atomic(path: Path, data: str | bytes | Callable[[BinaryIO], None]) -> 
 
 def _fsync_dir(folder: Path) -> None:
     """Make the rename itself durable (a power cut after it keeps the new file)."""
-    try:
+    with contextlib.suppress(OSError):  # a folder that cannot be opened or synced: nothing to do
         fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 def checkpoint_name(which: str) -> str:
@@ -150,17 +146,11 @@ class Run:
     @property
     def state(self) -> str:
         """new | configured | training | trained | evaluated | failed, from the files alone."""
-        has = self.path
-        if has(FAILED_FILE).exists():
-            return "failed"
-        if has(DONE_FILE).exists():
-            return "evaluated"
-        if has(FINAL_FILE).exists():
-            return "trained"
-        if has(RESUME_FILE).exists():
-            return "training"
-        if has(CONFIG_FILE).exists():
-            return "configured"
+        for name, state in ((FAILED_FILE, "failed"), (DONE_FILE, "evaluated"),
+                            (FINAL_FILE, "trained"), (RESUME_FILE, "training"),
+                            (CONFIG_FILE, "configured")):
+            if self.path(name).exists():  # the first file found, in this order, tells the state
+                return state
         return "new"
 
     def write(self, name: str, data: str | bytes) -> Path:

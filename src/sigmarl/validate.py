@@ -72,7 +72,7 @@ def check(cfg: Config) -> Config:
     if cfg.threads < 1:
         raise SigmarlError(f"threads must be positive, got {cfg.threads}")
     device_type(cfg.device)
-    _check_map(cfg)
+    check_map(cfg.map)
     obs = cfg.obs
     _positive("obs", obs, ("n_nearest", "noise"), strict=False)
     _positive("obs", obs, ("n_ref_points", "ref_point_stride"))
@@ -178,10 +178,6 @@ def _check_study(cfg: Config) -> None:
             raise SigmarlError(f"study.margins.{name} must be positive, got {margin}")
     if study.max_seeds < 2:
         raise SigmarlError(f"study.max_seeds must be at least 2, got {study.max_seeds}")
-
-
-def _check_map(cfg: Config) -> None:
-    check_map(cfg.map)
 
 
 def check_map(m: MapConfig) -> MapConfig:

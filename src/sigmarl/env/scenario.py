@@ -258,26 +258,17 @@ class TrafficScenario(Resets, StepPhases, BaseScenario):
         self._respawn_and_observe()
 
     def observation(self, agent: Agent) -> torch.Tensor:
-        if self.obs is None:
-            self._refresh()
-        return self.obs[:, self._agent_index[agent.name]]
+        return self.current_observation()[:, self._agent_index[agent.name]]
 
     def reward(self, agent: Agent) -> torch.Tensor:
         return self.rew[:, self._agent_index[agent.name]]
 
     def done(self) -> torch.Tensor:
-        if self.obs is None:
-            self._refresh()
+        self.current_observation()  # resets still pending are carried out first
         return self.terminated
 
     def info(self, agent: Agent) -> dict[str, torch.Tensor]:
         if not self.per_agent_infos:  # TrafficEnv reads `infos()` for all agents at once
             return {}
         i = self._agent_index[agent.name]
-        return {
-            "agent_collision": self.agent_collision[:, i].float(),
-            "lane_collision": self.lane_collision[:, i].float(),
-            "distance_to_center_line": self.step_d_center[:, i],
-            "speed": self.step_speed[:, i],
-            "respawned": self.respawned[:, i].float(),
-        }
+        return {key: value[:, i, 0] for key, value in self.infos().items()}

@@ -26,6 +26,7 @@ from sigmarl.sweep.command import override_key
 from sigmarl.sweep.plan import SweepPlan, finished, plan_sweep, sub_study_baseline
 from sigmarl.sweep.task import run_job
 from sigmarl.tracking import open_tracker
+from sigmarl.tracking.records import evaluation_runs
 
 PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
 
@@ -153,10 +154,7 @@ def _end_evaluations(tracker, train_run_id: str, key: str) -> None:
     client = getattr(tracker, "client", None)
     if client is None:
         return
-    running = client.search_runs([tracker.experiment_id()], filter_string=(
-        f"tags.kind = 'evaluation' and tags.train_run_id = '{train_run_id}' "
-        f"and tags.eval_key = '{key}' and attributes.status = 'RUNNING'"))
-    for old in running:
+    for old in evaluation_runs(client, tracker.experiment_id(), train_run_id, key, "RUNNING"):
         client.set_terminated(old.info.run_id, "KILLED")
 
 

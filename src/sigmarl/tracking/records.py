@@ -13,6 +13,7 @@ import os
 import socket
 import tempfile
 import time
+from collections import Counter
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -39,7 +40,8 @@ METRIC_NAMES = {m.name: f"{m.name}_{_SUFFIX.get(m.unit, m.unit)}" for m in METRI
 METRIC_SCALE = {m.name: m.scale for m in METRICS if m.scale != 1.0}
 
 
-def _evaluations(client, exp_id: str, train_run_id: str, key: str, status: str):
+def evaluation_runs(client, exp_id: str, train_run_id: str, key: str, status: str):
+    """The evaluation runs of a training run under an evaluation protocol, in `status`."""
     return client.search_runs(
         [exp_id],
         filter_string=(
@@ -51,7 +53,7 @@ def _evaluations(client, exp_id: str, train_run_id: str, key: str, status: str):
 
 def finished_evaluation(client, exp_id: str, train_run_id: str, key: str):
     """The FINISHED evaluation run of a training run under an evaluation protocol, if any."""
-    runs = _evaluations(client, exp_id, train_run_id, key, "FINISHED")
+    runs = evaluation_runs(client, exp_id, train_run_id, key, "FINISHED")
     return runs[0] if runs else None
 
 
@@ -68,7 +70,7 @@ def log_evaluation(client, exp_id: str, rows: pd.DataFrame, tags: dict[str, str]
 
     if tags.get("train_run_id"):
         for status in ("RUNNING", "FAILED", "KILLED", "FINISHED"):
-            for old in _evaluations(client, exp_id, tags["train_run_id"], tags["eval_key"], status):
+            for old in evaluation_runs(client, exp_id, tags["train_run_id"], tags["eval_key"], status):
                 client.delete_run(old.info.run_id)
     parent = _parent_tag(client, exp_id, tags.get("train_run_id"))
     run = client.create_run(exp_id, run_name=f"eval-{tags.get('model', 'policy')}-seed{tags.get('seed', '')}",
@@ -182,10 +184,9 @@ def load_training_curves(client, experiment: str, metric: str = REWARD_COLUMN) -
     for run in runs:
         # a resumed run may log a step twice: the last value counts, as in a folder's metrics.csv
         reward = _last_per_step(client, run.info.run_id, metric)
-        seconds: dict[int, float] = {}
+        seconds: Counter[int] = Counter()  # update() adds: an iteration's timings summed
         for name in TIMINGS:
-            for step, value in _last_per_step(client, run.info.run_id, name).items():
-                seconds[step] = seconds.get(step, 0.0) + value
+            seconds.update(_last_per_step(client, run.info.run_id, name))
         steps = sorted(reward)
         frames.append(pd.DataFrame({"model": run.data.tags.get("model"), "seed": run.data.tags.get("seed"),
                                     "iteration": steps, "reward": [reward[s] for s in steps],

@@ -135,18 +135,13 @@ def _first_line(e: BaseException) -> str:
 
 
 def _open(uri: str):
-    # lazy: MLflow (~1 s) only where a store is opened (start-up)
-    from mlflow import MlflowClient
-
     try:
-        client = SignalSafeClient(MlflowClient(tracking_uri=uri))
-        client.search_experiments(max_results=1)
+        return _open_raw(uri)
     except Exception as e:  # bad URI, refused connection, HTTP errors after the retries
         raise SigmarlError(
             f"MLflow tracking store {uri!r} is unreachable or not usable: {_first_line(e)} "
             "(set tracking.tracking_uri=..., or tracking.enabled=false to run without it)"
         ) from e
-    return client
 
 
 def _probe_sqlite(db: Path) -> None:
@@ -293,6 +288,7 @@ def _forget_engines(db: Path) -> None:
 
 
 def _open_raw(uri: str):
+    """A client on `uri`, checked by one query (which raises if the store is unusable)."""
     # lazy: MLflow (~1 s) only where a store is opened (start-up)
     from mlflow import MlflowClient
 

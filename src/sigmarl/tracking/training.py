@@ -193,7 +193,6 @@ class MlflowTrainingRun(TrainingRun):
         return None if run is None else run.info.status
 
     def finish(self, status: str = "FINISHED") -> None:
-        """FINISHED, KILLED (interrupted; resumable) or FAILED."""
         self._guard("set_terminated", status)
 
     def discard(self) -> None:

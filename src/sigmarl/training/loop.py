@@ -78,13 +78,9 @@ def config_changes(saved: dict[str, Any], cfg: Config) -> list[str]:
     older sigmarl resumes."""
     old, new = flatten(saved), flatten(as_dict(cfg))
     default = flatten(as_dict(Config()))
-    changed = []
-    for key in sorted(new):
-        if not key.startswith(RESUME_MUST_MATCH) or key == "ppo.stop_after":
-            continue
-        if new[key] != old.get(key, default.get(key)):
-            changed.append(key)
-    return changed
+    return [key for key in sorted(new)
+            if key.startswith(RESUME_MUST_MATCH) and key != "ppo.stop_after"
+            and new[key] != old.get(key, default.get(key))]
 
 
 def _resume_point(cfg: Config, run: Run, device: torch.device) -> dict[str, Any] | None:

@@ -71,8 +71,7 @@ def collect(batches: Iterator[TensorDictBase]) -> TensorDictBase:
     The last step is marked done (not terminated): the batch boundary cuts episodes like a
     time-out, so GAE bootstraps it from the value of the next observation.
     """
-    data = next(batches)
-    return mark_batch_end(data)
+    return mark_batch_end(next(batches))
 
 
 def mark_batch_end(data: TensorDictBase) -> TensorDictBase:

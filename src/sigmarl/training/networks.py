@@ -52,18 +52,7 @@ def make_actor(
     The parameters do not depend on `n_agents`, so a policy trained with 4 agents loads into an
     actor built for any other number of agents.
     """
-    n_actions = action_low.shape[-1]
-    mlp = MultiAgentMLP(
-        n_agent_inputs=obs_dim,
-        n_agent_outputs=2 * n_actions,
-        n_agents=n_agents,
-        centralised=False,
-        share_params=True,
-        device=device,
-        depth=len(net.hidden),
-        num_cells=list(net.hidden),
-        activation_class=ACTIVATIONS[net.activation],
-    )
+    mlp = _mlp(net, obs_dim, 2 * action_low.shape[-1], n_agents, False, True, device)
     # scale = softplus shifted so that a zero input gives 1, floored at scale_floor
     params = NormalParamExtractor(scale_mapping=f"biased_softplus_1.0_{net.scale_floor}")
     module = TensorDictModule(nn.Sequential(mlp, params), in_keys=[OBS], out_keys=[LOC, SCALE])
@@ -89,18 +78,18 @@ def make_critic(
     (D); `shared_critic_value=True` gives one MLP applied to each agent (its parameters do not
     depend on A), False one MLP per agent.
     """
-    mlp = MultiAgentMLP(
-        n_agent_inputs=obs_dim,
-        n_agent_outputs=1,
-        n_agents=n_agents,
-        centralised=bool(net.centralised_critic),
-        share_params=bool(net.shared_critic_value),
-        device=device,
-        depth=len(net.hidden),
-        num_cells=list(net.hidden),
-        activation_class=ACTIVATIONS[net.activation],
-    )
+    centralised, shared = bool(net.centralised_critic), bool(net.shared_critic_value)
+    mlp = _mlp(net, obs_dim, 1, n_agents, centralised, shared, device)
     return TensorDictModule(mlp, in_keys=[OBS], out_keys=[VALUE])
+
+
+def _mlp(net: NetworkConfig, obs_dim: int, n_outputs: int, n_agents: int, centralised: bool,
+         share_params: bool, device: str | torch.device) -> MultiAgentMLP:
+    """A MultiAgentMLP of the configured hidden layers and activation."""
+    return MultiAgentMLP(n_agent_inputs=obs_dim, n_agent_outputs=n_outputs, n_agents=n_agents,
+                         centralised=centralised, share_params=share_params, device=device,
+                         depth=len(net.hidden), num_cells=list(net.hidden),
+                         activation_class=ACTIVATIONS[net.activation])
 
 
 def plain_forward(net: MultiAgentMLP) -> Callable[[torch.Tensor], torch.Tensor]:
@@ -156,9 +145,6 @@ class PolicyHead:
         self.log_half = self.half.log()
         # torchrl's TanhNormal keeps tanh inside +-(1 - resolution)
         self.tanh_limit = 1.0 - torch.finfo(self.half.dtype).resolution
-
-    def loc_scale(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        return self.scale_map(self.net(obs))
 
     def deterministic_action(self, obs: torch.Tensor) -> torch.Tensor:
         """The actor's action under ExplorationType.DETERMINISTIC: the TanhNormal's
