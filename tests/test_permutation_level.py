@@ -11,7 +11,7 @@ its shape. Here the seeds of both sides come from one distribution:
   each model centred on its own mean and the two pooled (28 values), drawn with replacement.
 
 A simulated study has 4 scenarios x 5 variants sharing one baseline per scenario (as M1..M5
-against M0), decided with the production Holm rules (`report.verdicts.decide`) at fixed n = 3, 5
+against M0), decided with the production Holm rules (`report.compare.verdicts.decide`) at fixed n = 3, 5
 and 10 seeds per side, and with seeds=auto's looks (`stats.sequential.sequential_decide`).
 Rates are asserted at most alpha + 3 binomial standard errors.
 
