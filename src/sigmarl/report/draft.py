@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from sigmarl.report.compare.curve_verdicts import paper_model_of
 from sigmarl.report.compare.verdicts import Design
 from sigmarl.report.table.tables import ResultTable
 
@@ -118,6 +119,12 @@ class Draft:
         design = self.options.design
         return replace(design, variants=list(self.models)) if design is not None else \
             Design(variants=self.models, baseline="M0" if "M0" in self.models else self.models[0])
+
+    @property
+    def paper_models(self) -> dict[str, str | None]:
+        """Each column's paper model (M0..M5) by its observation strategies, None for another design."""
+        obs = self.rows.drop_duplicates("model").set_index("model")["obs"].astype(str)
+        return {m: paper_model_of(obs.get(m, "")) for m in self.models}
 
     def file(self, key: str, name: str) -> Path:
         """Where the current section's file `name` goes, recorded under `key` (a figure's path)."""

@@ -7,7 +7,6 @@ import pandas as pd
 
 from sigmarl.report.compare.curve_verdicts import (
     curve_verdicts_markdown,
-    paper_model_of,
     paper_seed_table,
     separation_table,
 )
@@ -53,9 +52,7 @@ def curve_verdicts_section(d: Draft) -> None:
     separation = separation_table(d.curves, design) if design.baseline in d.models else None
     seeds = None
     if d.options.compare_paper:
-        obs = d.rows.drop_duplicates("model").set_index("model")["obs"].astype(str)
-        seeds = paper_seed_table(d.training, paper_last_rewards(paper_curves()),
-                                 {m: paper_model_of(obs.get(m, "")) for m in d.models})
+        seeds = paper_seed_table(d.training, paper_last_rewards(paper_curves()), d.paper_models)
     text = curve_verdicts_markdown(*(x if x is not None else pd.DataFrame() for x in (separation, seeds)), design)
     if not text:
         return
@@ -69,8 +66,7 @@ def replication_section(d: Draft) -> None:
     models (label and observation strategies both, so no other design is read as the paper's)."""
     if not d.options.compare_paper or "M0" not in d.models:
         return
-    obs = d.rows.drop_duplicates("model").set_index("model")["obs"].astype(str)
-    own = [m for m in d.models if paper_model_of(obs.get(m, "")) == m]
+    own = [m for m in d.models if d.paper_models[m] == m]
     if "M0" not in own or len(own) < 2:
         return
     table = replication_table(d.rows, own, "M0", d.design.alpha)
