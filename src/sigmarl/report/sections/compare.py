@@ -66,7 +66,8 @@ def replication_section(d: Draft) -> None:
     models (label and observation strategies both, so no other design is read as the paper's)."""
     if not d.options.compare_paper or "M0" not in d.models:
         return
-    own = [m for m in d.models if d.paper_models[m] == m]
+    paper = d.paper_models
+    own = [m for m in d.models if paper[m] == m]
     if "M0" not in own or len(own) < 2:
         return
     table = replication_table(d.rows, own, "M0", d.design.alpha)
