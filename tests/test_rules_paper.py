@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -29,8 +30,10 @@ from sigmarl.env.paper_rules import (
     switches_on,
 )
 from sigmarl.evaluation.protocol import rows_rules
+from sigmarl.identity import fingerprint
 from sigmarl.maps.model import Lanelet, RoadMap
 from sigmarl.maps.routes import build_route
+from sigmarl.readers import read_run_config
 
 STEER_FREE, STEER_SCALE = math.radians(10), math.radians(50)
 ALL = [f.name for f in dataclasses.fields(RulesConfig)]
@@ -59,6 +62,8 @@ def test_rules_label_and_what_evaluation_keeps():
     assert rules_label(RulesConfig()) == "ours"
     assert rules_label(RulesConfig(**dict.fromkeys(ALL, True))) == "paper"
     assert rules_label(RulesConfig(drag_dynamics=True, lagged_steering=True)) == "drag_dynamics+lagged_steering"
+    before_reward = RulesConfig(**{**dict.fromkeys(ALL, True), "reward_normaliser_one": False, "reset_speed_one": False})
+    assert rules_label(before_reward) == "paper-reward_normaliser_one+reset_speed_one"
     cfg = for_evaluation(Config(rules=RulesConfig(**dict.fromkeys(ALL, True))))
     # evaluation measures our way: contacts, per-agent flags, fresh observations ...
     assert not any(getattr(cfg.rules, k) for k in MEASUREMENT_SWITCHES)
@@ -254,6 +259,39 @@ def test_raw_center_line_progress_reward_measures_against_raw_reference_points(e
     assert float(d.sc.terms["progress"][0, 0]) == pytest.approx(expect, abs=1e-5)
 
 
+def test_reward_normaliser_one_divides_the_motion_terms_by_one(env_factory, straight_road):
+    """The same step as above, raw reference points at x = 1.4, 1.8, 2.2 (r = 0.39, 0.79, 1.19 m
+    from the ego before the step), velocity 0.4 m/s along x. Ours divides by 0.8 m/s, the
+    paper's code by 1.0: progress 0.1 sum_k w_k 0.02 r_k / (s dt), speed 0.05 v_bar / s with
+    v_bar = mean_k 0.4 r_k = 0.316, moving 0.05 * 0.4 / s; the penalties stay as they are."""
+    w = [1 / 1.8, 0.6 / 1.8, 0.2 / 1.8]
+    r = [0.39, 0.79, 1.19]
+    got = {}
+    for scale, extra in ((0.8, []), (1.0, ["rules.reward_normaliser_one=true"])):
+        d = env_factory(["rules.raw_center_line=true", *extra], num_envs=1, n_agents=1, road_map=straight_road)
+        d.place([[1.01, 0.0]], [0.0], speed=[0.4])
+        d.step([0.4, 0.0])
+        terms = {k: float(v[0, 0]) for k, v in d.sc.terms.items()}
+        assert terms["progress"] == pytest.approx(0.1 * sum(a * 0.02 * b for a, b in zip(w, r, strict=True)) / (scale * 0.05), abs=1e-5)
+        assert terms["speed"] == pytest.approx(0.05 * 0.316 / scale, abs=1e-5)
+        assert terms["moving"] == pytest.approx(0.05 * 0.4 / scale, abs=1e-5)
+        got[scale] = terms
+    assert {k: v for k, v in got[0.8].items() if k not in ("progress", "speed", "moving")} == pytest.approx(
+        {k: v for k, v in got[1.0].items() if k not in ("progress", "speed", "moving")})
+
+
+def test_reset_speed_one_draws_respawn_speeds_up_to_the_command_limit(env_factory):
+    """A respawn's speed is uniform in [0, 0.8) m/s under ours and in [0, 1.0) under the paper's
+    code: over 512 vehicles, the paper's reach past 0.8 (about a fifth of them) and ours never do."""
+    for limit, extra in ((0.8, []), (1.0, ["rules.reset_speed_one=true"])):
+        d = env_factory(extra, num_envs=128, n_agents=4)
+        speed = d.sc.speed.abs().flatten()
+        assert float(speed.max()) < limit
+        share = float((speed > 0.8).float().mean())
+        assert (share == 0.0) if limit == 0.8 else (0.13 < share < 0.27)
+        assert float(speed.mean()) == pytest.approx(limit / 2, abs=0.05)
+
+
 # ---- 8. M4's boundary points ---------------------------------------------------------------
 def two_lane_map() -> RoadMap:
     """Two same-direction lanes, x in [0, 2]: lane 1 (center y = 0, 11 vertices, 0.2 m apart)
@@ -408,14 +446,14 @@ def test_stale_observation_after_a_test_mode_respawn(env_factory, straight_road)
 def test_the_rule_families_split_the_paper_rules_and_the_screen_declares_them():
     from sigmarl.sweep import plan_sweep
 
-    families = ["dynamics", "observation", "collisions", "episodes"]
+    families = ["dynamics", "observation", "collisions", "episodes", "reward"]
     on = {f: switches_on(compose_config([f"rules=paper_{f}"]).rules) for f in families}
     assert on["dynamics"] == ["drag_dynamics"] and "own_boundary_index" in on["observation"]
     assert sorted(s for f in families for s in on[f]) == sorted(ALL)  # each switch in exactly one
     plan = plan_sweep(["study=paper_switches", "seeds=[0]", "tracking.enabled=false"], cores=2)
     jobs = {j.label: j for j in plan.jobs}
     assert len(jobs) == 12
-    for f in families:
+    for f in families[:4]:
         for model, preset in [("M0", "full"), ("M4", "no_distance_to_boundaries")]:
             cfg = compose_config(jobs[f"{model}-{f}"].overrides)
             assert cfg.obs.preset == preset and switches_on(cfg.rules) == on[f]
@@ -425,6 +463,9 @@ def test_the_rule_families_split_the_paper_rules_and_the_screen_declares_them():
     for label, folder in [("M0", "paper-budget"), ("M4", "paper-budget"), ("M0-paper", "paper-rules"),
                           ("M4-paper", "paper-rules")]:
         assert jobs[label].run_dir == f"results/{folder}/{label}/seed0"
+        # the committed runs were trained before the reward family existed: the studies name it off
+        committed = read_run_config(Path(__file__).parents[1] / "results" / folder / label / "seed0" / "config.yaml")
+        assert jobs[label].fingerprint == fingerprint(committed)
         assert jobs[label].fingerprint == rules[label].fingerprint
     study = plan.config.study
     assert study.baselines["M4-observation"] == "M4" and study.interactions["observation"] == ["M4-observation", "M0-observation"]

@@ -26,6 +26,7 @@ from omegaconf.errors import OmegaConfBaseException
 from sigmarl.ablation import PAPER_SCENARIOS, model_label
 from sigmarl.errors import SigmarlError
 from sigmarl.reward_config import RewardConfig
+from sigmarl.rules_config import RulesConfig
 from sigmarl.vehicle_config import VehicleConfig
 
 
@@ -246,45 +247,6 @@ class SweepConfig:
 
     seeds_per_job: int = 0
     """Seeds of one variant each sweep job trains as one seed block (`sigmarl train seeds=[...]`). 0: by device, 1 on cpu (measured: a block seed costs 0.88-1.07 of a lone one there, benchmarks/bench_blocks.py), 64 on cuda (estimated; not yet measured)."""
-
-
-@dataclass
-class RulesConfig:
-    """The paper's code where ours differs, one switch per difference: all off (`rules=ours`)
-    is our environment, all on (`rules=paper`) the paper's. Evaluation keeps the dynamics and
-    observation switches of the checkpoint it evaluates; it always measures with our
-    contacts, per-agent flags and fresh observations (`sigmarl.env.paper_rules`)."""
-
-    # VMAS drag 0.25 makes v = delta/dt - 0.25 v_prev: steady 0.8 c through an alternating
-    # transient c, 0.75 c, 0.81 c, ...; the yaw rate likewise
-    drag_dynamics: bool = False
-    """Paper: speed command in [-1, 1] through VMAS's drag (steady 0.8 of the command)."""
-    speed_normaliser_one: bool = False
-    """Paper: observed speeds and velocities divided by 1.0 (ours by 0.8)."""
-    unsigned_speed: bool = False
-    """Paper: the ego view observes |v| (ours the signed forward speed)."""
-    others_velocity_heading: bool = False
-    """Paper: another's velocity observed as |v_j| (cos, sin)(psi_j - psi_i), along its heading, unsigned."""
-    unwrapped_headings: bool = False
-    """Paper: headings and relative headings never wrapped to (-pi, pi]."""
-    one_sided_noise: bool = False
-    """Paper: noise + obs.noise x U[0, 1) (mean +0.01; ours zero-mean)."""
-    raw_center_line: bool = False
-    """Paper: center line at raw map vertices; reference points the vertices +2, +4, +6 from the closest segment."""
-    own_boundary_index: bool = False
-    """Paper (M4): 5 raw boundary vertices from the boundary's own closest segment (ours: resampled)."""
-    test_world_size: bool = False
-    """Paper: the bird's-eye view normalised by the test map's size in evaluation."""
-    strict_crossings: bool = False
-    """Paper: a collision is a strict crossing of edges; touching and containment do not count."""
-    env_lane_flag: bool = False
-    """Paper: the lane-collision info flag is per environment (ours per agent)."""
-    lagged_steering: bool = False
-    """Paper: the steering penalty on delta_{t-1} - delta_{t-2} (ours delta_t - delta_{t-1})."""
-    timeout_terminal: bool = False
-    """Paper: a training time-out is terminal (ours: truncated, bootstrapped)."""
-    stale_respawn_obs: bool = False
-    """Paper: test-mode respawns return the pre-respawn observation."""
 
 
 @dataclass

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from sigmarl.config import as_dict, flatten
 from sigmarl.errors import SigmarlError
 from sigmarl.reward_config import ADDED_KEYS as REWARD_KEYS
+from sigmarl.rules_config import ADDED_KEYS as RULES_KEYS
 from sigmarl.vehicle_config import ADDED_KEYS as VEHICLE_KEYS
 
 if TYPE_CHECKING:
@@ -31,7 +32,7 @@ NOT_TRAINING = frozenset({"obs.preset", "map.name", "ppo.checkpoint_every", "ppo
 # had. At that value a setting is left out, so that a new key does not change every recorded
 # fingerprint (and split a published study in two); at any other value it counts. A new
 # training setting goes here with its default.
-ADDED_LATER: dict[str, Any] = {"network.centralised_critic": True, **REWARD_KEYS, **VEHICLE_KEYS}
+ADDED_LATER: dict[str, Any] = {"network.centralised_critic": True, **REWARD_KEYS, **VEHICLE_KEYS, **RULES_KEYS}
 # a label names a folder and a table column: letters, digits, '.', '_', '-'
 _LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 

@@ -21,7 +21,7 @@ import torch
 from sigmarl.env.collision import nearest_on_segments, segment_table
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import wrap_angle
-from sigmarl.env.params import NORMALISERS
+from sigmarl.env.params import NORMALISERS, VEHICLE
 from sigmarl.env.route_bank import follow_line, segment_distances
 from sigmarl.maps.routes import extend_straight, join_polylines
 
@@ -52,9 +52,12 @@ def switches_on(rules: RulesConfig) -> list[str]:
 
 
 def rules_label(rules: RulesConfig) -> str:
-    """`ours` (every switch off), `paper` (every switch on), or the switches on, joined by +."""
+    """`ours` (every switch off), `paper` (every switch on), the switches on joined by +, or,
+    with most on, `paper-` and the switches off (`paper-reward_normaliser_one+reset_speed_one`:
+    the runs trained under `rules=paper` before those two switches existed)."""
     on = switches_on(rules)
-    return "ours" if not on else "paper" if len(on) == len(fields(rules)) else "+".join(on)
+    off = [f.name for f in fields(rules) if f.name not in on]
+    return "ours" if not on else "paper" if not off else "+".join(on) if len(on) <= len(off) else "paper-" + "+".join(off)
 
 
 def for_evaluation(cfg: Any) -> Any:
@@ -93,6 +96,16 @@ def heading_velocity(vel: torch.Tensor, heading: torch.Tensor) -> torch.Tensor:
 
 def speed_scale(rules: RulesConfig) -> float:
     return COMMAND_LIMIT if rules.speed_normaliser_one else NORMALISERS.speed
+
+
+def reward_speed_scale(rules: RulesConfig) -> float:
+    """What the reward's motion terms divide speeds by: the paper's command limit, or our top speed."""
+    return COMMAND_LIMIT if rules.reward_normaliser_one else VEHICLE.max_speed
+
+
+def reset_speed_limit(rules: RulesConfig, max_speed: float) -> float:
+    """A respawn's speed is drawn in [0, this): the paper's command limit, or the vehicle's top speed."""
+    return COMMAND_LIMIT if rules.reset_speed_one else max_speed
 
 
 # ---- collisions ----------------------------------------------------------------------------

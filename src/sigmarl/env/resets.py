@@ -53,7 +53,7 @@ class Resets:
         # Agents being replaced do not block the sampler: park them far away.
         pos = torch.where(place.unsqueeze(-1), torch.full_like(self.pos, 1e6), self.pos)
         route, idx = sample_spawns(self.bank, pos, place, self.spawn_lo, self.spawn_hi, self.rng)
-        speed = self.rng.rand(self._per_seed(place.shape), self.rng.active(place)) * self.max_speed
+        speed = self.rng.rand(self._per_seed(place.shape), self.rng.active(place)) * self.reset_speed
         heading = self.bank.heading[route, idx]
         self.route = torch.where(place, route, self.route)
         self.index = torch.where(place, idx, self.index)

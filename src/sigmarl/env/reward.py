@@ -35,17 +35,18 @@ class RewardInputs:
     lane_collision: torch.Tensor  # [E, A] bool
 
 
-def reward_terms(x: RewardInputs, w: RewardConfig) -> dict[str, torch.Tensor]:
+def reward_terms(x: RewardInputs, w: RewardConfig, v_scale: float = VEHICLE.max_speed) -> dict[str, torch.Tensor]:
     """Each term of the reward (`env.reward.*`: the paper's by default) as an [E, A] tensor
-    (before the clamp)."""
+    (before the clamp). The motion terms divide speeds by `v_scale`: our top speed, 0.8 m/s,
+    or the paper's command limit, 1.0 m/s (`rules.reward_normaliser_one`)."""
     ref_w = x.pos.new_tensor(REWARD.ref_weights[: x.prev_ref_points.shape[-2]])
     r = x.prev_ref_points - x.prev_pos.unsqueeze(-2)  # [E, A, P, 2]
     step = (x.pos - x.prev_pos).unsqueeze(-2)
-    progress = w.progress * ((step * r).sum(-1) * ref_w).sum(-1) / (VEHICLE.max_speed * DT)
+    progress = w.progress * ((step * r).sum(-1) * ref_w).sum(-1) / (v_scale * DT)
     v_bar = (x.vel.unsqueeze(-2) * r).sum(-1).mean(-1)
-    speed = w.speed * v_bar / VEHICLE.max_speed
+    speed = w.speed * v_bar / v_scale
     speed = torch.where(v_bar <= 0, 2 * speed, speed)
-    moving = w.moving * torch.sign(v_bar) * x.vel.norm(dim=-1) / VEHICLE.max_speed
+    moving = w.moving * torch.sign(v_bar) * x.vel.norm(dim=-1) / v_scale
     near_boundary = w.near_boundary * decay(x.d_boundary, 0.0, w.near_boundary_at)
     eye = torch.eye(x.distances.shape[-1], dtype=torch.bool, device=x.distances.device)
     near = decay(x.distances, w.near_agent_full_at, w.near_agent_zero_at).masked_fill(eye, 0.0)

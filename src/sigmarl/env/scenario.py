@@ -124,6 +124,8 @@ class TrafficScenario(Resets, StepPhases, BaseScenario):
         self.command_limit = paper.COMMAND_LIMIT if rules.drag_dynamics else self.max_speed
         self.obs_world = paper.test_world(self.road_map) if rules.test_world_size and not self.train else WORLD_SIZE
         self.obs_speed_scale = paper.speed_scale(rules)
+        self.reward_speed_scale = paper.reward_speed_scale(rules)
+        self.reset_speed = paper.reset_speed_limit(rules, self.max_speed)
         self.raw_geo: paper.RawGeometry | None = None
         self.d_line = None  # raw center-line distance (raw_center_line), else geo.d_center
 

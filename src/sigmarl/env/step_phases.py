@@ -67,7 +67,7 @@ class StepPhases:
                 distances=self.distances, d_center=self.geo.d_center if self.d_line is None else self.d_line,
                 steering=steering, prev_steering=prev_steering,
                 agent_collision=hit_agent, lane_collision=hit_lane,
-            ), self.reward_weights)
+            ), self.reward_weights, self.reward_speed_scale)
         self.rew = total_reward(self.terms)
 
     def _past_exit(self) -> torch.Tensor:
