@@ -41,6 +41,9 @@ NEXT_RESUME_FILE = "checkpoint.next.pt"  # a block's resume point while its seed
 
 # The metric whose history tells which iterations a training run holds (metrics.csv, MLflow).
 REWARD_COLUMN = "episode_reward_mean"
+# The paper's definition of it, estimated from the same batch (`training.mappo.complete_episode_reward`);
+# runs trained before it lack the column.
+COMPLETE_REWARD_COLUMN = "episode_reward_mean_complete"
 
 
 def write_atomic(path: Path, data: str | bytes | Callable[[BinaryIO], None]) -> None:

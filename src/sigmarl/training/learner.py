@@ -114,7 +114,8 @@ class Learner:
         losses = update(data, self.loss, self.optimiser, self.cfg.ppo)
         t3 = time.perf_counter()
         e = data.shape[0] // len(self.seeds)
-        metrics = [{**rollout_stats(data[k * e:(k + 1) * e]), **losses[k]} for k in range(len(self.seeds))]
+        metrics = [{**rollout_stats(data[k * e:(k + 1) * e], self.cfg.env.max_steps), **losses[k]}
+                   for k in range(len(self.seeds))]
         return metrics, {"total": t3 - t0, "collect": t1 - t0, "advantage": t2 - t1, "optimise": t3 - t2}
 
     @torch.no_grad()

@@ -17,6 +17,7 @@ from torchrl.envs.utils import ExplorationType
 from torchrl.objectives.value import GAE
 
 from sigmarl.config import PPOConfig
+from sigmarl.run import COMPLETE_REWARD_COLUMN
 from sigmarl.training.networks import VALUE
 from sigmarl.training.ppo_loss import (
     ADVANTAGE,
@@ -28,7 +29,7 @@ from sigmarl.training.ppo_loss import (
     PPOLoss,
 )
 
-__all__ = ["clip_grad_norm_per_seed", "collect", "make_collector", "make_gae", "rollout_stats", "update"]
+__all__ = ["clip_grad_norm_per_seed", "collect", "complete_episode_reward", "make_collector", "make_gae", "rollout_stats", "update"]
 
 
 def make_gae(critic: TensorDictModule, ppo: PPOConfig) -> GAE:
@@ -90,8 +91,10 @@ def mark_batch_end(data: TensorDictBase) -> TensorDictBase:
     return data
 
 
-def rollout_stats(data: TensorDictBase) -> dict[str, float]:
-    """Mean episode reward (per agent) and the mean of every per-agent info of the rollout.
+def rollout_stats(data: TensorDictBase, max_steps: int | None = None) -> dict[str, float]:
+    """Mean episode reward (per agent) and the mean of every per-agent info of the rollout;
+    with `max_steps` (the environment's episode limit) also the paper's definition of the
+    mean episode reward, estimated (`complete_episode_reward`), where the rollout allows it.
 
     Every step lies in exactly one episode that ends inside the rollout (the last step is
     done), so the mean episode reward is the reward sum over the number of agent-episodes.
@@ -104,12 +107,45 @@ def rollout_stats(data: TensorDictBase) -> dict[str, float]:
         "reward_mean": reward.mean(),
         "episodes": episodes / n_agents,
     }
+    complete = complete_episode_reward(data, max_steps) if max_steps else None
+    if complete is not None:
+        stats[COMPLETE_REWARD_COLUMN] = complete
     info = data["next"].get(("agents", "info"), None)
     if info is not None:
         for key, value in info.items(include_nested=True, leaves_only=True):
             name = key if isinstance(key, str) else "_".join(key)
             stats[f"train_{name}"] = value.float().mean()
     return {k: float(v) for k, v in stats.items()}
+
+
+def complete_episode_reward(data: TensorDictBase, max_steps: int) -> torch.Tensor | None:
+    """The paper's mean episode reward, estimated from a batch [envs, T] whose every environment
+    was reset at its start (`mark_batch_end` applied); None where T < `max_steps`.
+
+    The paper's collector never resets between batches: it logs the whole return of each episode
+    that ends in the batch, however long ago it began. Ours counts the segment a batch's end cuts
+    as an episode, which lowers the mean. Every episode starts from the same reset distribution,
+    so under one policy episodes are independent draws, and the paper's ratio (returns of the
+    episodes that end over their number) estimates one episode's expected return. An episode that
+    begins at step s <= T - max_steps ends inside the batch whatever it does (a time-out at
+    max_steps at the latest), so choosing those episodes by their start, which earlier episodes
+    alone decide, picks no short or long ones: their mean return is an unbiased draw of the
+    paper's quantity (with T = max_steps, as in training: each environment's first episode).
+    Averaging instead every episode a done ended would favour the short, colliding ones.
+    """
+    done = data["next", "done"].squeeze(-1)  # [E, T], the last step done
+    steps = done.shape[1]
+    if steps < max_steps:
+        return None
+    begins = torch.zeros_like(done)
+    begins[:, 0] = True
+    begins[:, 1:] = done[:, :-1]
+    index = torch.arange(steps, device=done.device).expand_as(done)
+    start = torch.cummax(torch.where(begins, index, 0), dim=1).values  # each step's episode's first step
+    chosen = start <= steps - max_steps
+    reward = data["next"].get(REWARD_KEY)  # [E, T, A, 1]
+    total = (reward.sum((-2, -1)) * chosen).sum()
+    return total / ((done & chosen).sum() * reward.shape[-2])
 
 
 def clip_grad_norm_per_seed(params: list[torch.Tensor], max_norm: float) -> torch.Tensor:

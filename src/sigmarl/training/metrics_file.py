@@ -17,13 +17,33 @@ from sigmarl.readers import read_metrics
 from sigmarl.run import METRICS_FILE  # noqa: F401  (its callers name the file through here)
 
 
-def append(path: Path, iteration: int, metrics: Mapping[str, float]) -> None:
-    """Add one iteration's row (the header first, in a new file)."""
-    new = not path.exists() or path.stat().st_size == 0
+def append(path: Path, iteration: int, metrics: Mapping[str, float]) -> dict[str, float]:
+    """Add one iteration's row (the header first, in a new file); returns the row as written.
+
+    A run keeps the columns it began with: resumed by a sigmarl that logs more (e.g.
+    `episode_reward_mean_complete`), it leaves the new ones out, so that its file, and the
+    history sent to the tracker, stay one table."""
+    names = _header(path)
+    if names is None:
+        names = list(metrics)
+        with open(path, "a", encoding="utf-8") as f:
+            f.write(",".join(["iteration", *names]) + "\n")
+    lacking = [n for n in names if n not in metrics]
+    if lacking:
+        raise SigmarlError(f"{path} has the column(s) {', '.join(lacking)} that this training does not log; "
+                           "resume it with the sigmarl that began it, or move the run folder away")
+    row = {n: float(metrics[n]) for n in names}
     with open(path, "a", encoding="utf-8") as f:
-        if new:
-            f.write(",".join(["iteration", *metrics]) + "\n")
-        f.write(",".join([str(iteration), *(repr(float(v)) for v in metrics.values())]) + "\n")
+        f.write(",".join([str(iteration), *(repr(v) for v in row.values())]) + "\n")
+    return row
+
+
+def _header(path: Path) -> list[str] | None:
+    """The metric names of an existing file's header, or None for a new (or empty) file."""
+    if not path.exists() or path.stat().st_size == 0:
+        return None
+    with open(path, encoding="utf-8") as f:
+        return f.readline().rstrip("\n").split(",")[1:]
 
 
 def read(path: Path, upto: int | None = None) -> list[tuple[int, dict[str, float]]]:

@@ -99,9 +99,9 @@ class SeedRun:
     def record_iteration(self, done: int, metrics: dict[str, float], learned) -> float:
         """An iteration's row, and best.pt if its reward is the best so far (to 2 decimals, the
         paper's rule); `learned()` gives the weights when they are needed. Returns the reward."""
+        metrics = metrics_file.append(self.run.metrics_file, done, metrics)
         self.history.append(metrics)
         self.pending.append((done, metrics))
-        metrics_file.append(self.run.metrics_file, done, metrics)
         crash.point(f"train:iteration:{done}")
         reward = metrics[REWARD_COLUMN]
         if self.best is None or round(reward, 2) > self.best:

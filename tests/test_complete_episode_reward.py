@@ -1,0 +1,90 @@
+"""The paper's mean episode reward, estimated from a training batch (`episode_reward_mean_complete`).
+
+Hand-worked batches check which episodes it counts; a real training shows the column in
+metrics.csv, and a run begun without it (an older sigmarl) resumed without it. Its agreement
+with a collector that never resets is measured by benchmarks/paper_episode_reward.py (the
+figure is in docs/deviations.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+from tensordict import TensorDict
+
+from sigmarl.cli import main
+from sigmarl.errors import SigmarlError
+from sigmarl.run import COMPLETE_REWARD_COLUMN, REWARD_COLUMN
+from sigmarl.training import metrics_file
+from sigmarl.training.mappo import complete_episode_reward, mark_batch_end, rollout_stats
+
+
+def _batch(rewards: list[list[float]], dones: list[list[bool]]) -> TensorDict:
+    """A batch [E, T] with 2 agents, the second earning twice the first's reward."""
+    r = torch.tensor(rewards)
+    e, t = r.shape
+    reward = torch.stack([r, 2 * r], -1).unsqueeze(-1)  # [E, T, 2, 1]
+    done = torch.tensor(dones).unsqueeze(-1)
+    nxt = TensorDict({"agents": TensorDict({"reward": reward}, [e, t, 2]), "done": done,
+                      "terminated": done.clone()}, [e, t])
+    return mark_batch_end(TensorDict({"next": nxt}, [e, t]))
+
+
+def test_the_episodes_that_began_max_steps_before_the_end_are_counted_whole() -> None:
+    # T = 4, max_steps = 2: an episode that begins at step 0, 1 or 2 ends inside the batch.
+    # env 0: episodes at steps 0-1 (reward 1 + 2) and 2-3 (4 + 8): both counted;
+    # env 1: episodes 0 (5), 1-2 (1 + 1) and 3 (7, begun at step 3, cut by the batch end: left out).
+    data = _batch([[1.0, 2.0, 4.0, 8.0], [5.0, 1.0, 1.0, 7.0]],
+                  [[False, True, False, False], [True, False, True, False]])
+    # agent-episodes: returns 3, 12, 5, 2 for the first agent, twice those for the second
+    want = (3 + 12 + 5 + 2) * 3 / 8
+    assert float(complete_episode_reward(data, max_steps=2)) == pytest.approx(want)
+    stats = rollout_stats(data, max_steps=2)
+    assert stats[COMPLETE_REWARD_COLUMN] == pytest.approx(want)
+    # ours counts the cut segment (7) as a fifth episode
+    assert stats[REWARD_COLUMN] == pytest.approx((3 + 12 + 5 + 2 + 7) * 3 / 10)
+
+
+def test_with_rollouts_as_long_as_an_episode_each_environment_counts_its_first_episode() -> None:
+    # T = max_steps = 3 (training: 128 and 128): env 0 collides at step 0, then runs cut;
+    # env 1 runs the whole batch (a time-out at its last step)
+    data = _batch([[-1.0, 2.0, 2.0], [1.0, 1.0, 1.0]], [[True, False, False], [False, False, False]])
+    assert float(complete_episode_reward(data, max_steps=3)) == pytest.approx((-1 + 3) * 3 / 4)
+
+
+def test_a_rollout_shorter_than_an_episode_has_no_estimate() -> None:
+    data = _batch([[1.0, 1.0]], [[False, False]])
+    assert complete_episode_reward(data, max_steps=3) is None
+    assert COMPLETE_REWARD_COLUMN not in rollout_stats(data, max_steps=3)
+    assert COMPLETE_REWARD_COLUMN not in rollout_stats(data)
+
+
+def test_metrics_file_keeps_the_columns_its_run_began_with(tmp_path: Path) -> None:
+    path = tmp_path / "metrics.csv"
+    metrics_file.append(path, 1, {REWARD_COLUMN: 1.0, "lr": 1e-4})
+    row = metrics_file.append(path, 2, {REWARD_COLUMN: 2.0, COMPLETE_REWARD_COLUMN: 2.5, "lr": 1e-4})
+    assert row == {REWARD_COLUMN: 2.0, "lr": 1e-4}
+    assert metrics_file.read(path) == [(1, {REWARD_COLUMN: 1.0, "lr": 1e-4}), (2, row)]
+    with pytest.raises(SigmarlError, match="has the column.s. lr that this training does not log"):
+        metrics_file.append(path, 3, {REWARD_COLUMN: 3.0})
+
+
+def test_a_training_logs_the_estimate_and_a_run_begun_without_it_resumes_without_it(tmp_path: Path) -> None:
+    # smoke: 8 environments x 32 steps; episodes of 32 steps make it estimable
+    args = ["train", "ppo=smoke", "env.max_steps=32", "tracking.enabled=false"]
+    new, old = tmp_path / "new", tmp_path / "old"
+    assert main([*args, f"run_dir={new}"]) == 0
+    rows = metrics_file.read(new / "metrics.csv")
+    assert len(rows) == 3 and all(COMPLETE_REWARD_COLUMN in values for _, values in rows)
+    assert main([*args, f"run_dir={old}", "ppo.stop_after=1"]) == 0
+    path = old / "metrics.csv"
+    header, *lines = path.read_text().splitlines()
+    drop = header.split(",").index(COMPLETE_REWARD_COLUMN)  # as an older sigmarl wrote it
+    path.write_text("\n".join(",".join(c for i, c in enumerate(line.split(",")) if i != drop)
+                              for line in [header, *lines]) + "\n")
+    assert main([*args, f"run_dir={old}", "resume=true"]) == 0
+    rows = metrics_file.read(path)
+    assert len(rows) == 3 and all(COMPLETE_REWARD_COLUMN not in values for _, values in rows)
+    # the same computation either way: the columns both logged agree
+    assert [v[REWARD_COLUMN] for _, v in rows] == [v[REWARD_COLUMN] for _, v in metrics_file.read(new / "metrics.csv")]
