@@ -15,6 +15,7 @@ from scipy import stats
 
 from sigmarl.cli import main
 from sigmarl.report.compare.curve_verdicts import (
+    curve_verdicts_markdown,
     paper_model_of,
     paper_seed_table,
     parting,
@@ -90,6 +91,19 @@ def test_the_paper_seed_against_the_prediction_interval_for_one_more_seed():
     assert inside["verdict"].tolist() == ["within"]
 
 
+def test_against_the_paper_a_variant_is_read_on_the_papers_definition_where_every_seed_has_it():
+    summary = pd.DataFrame({"model": ["M0", "M0", "M4", "M4"], "seed": [0, 1, 0, 1],
+                            "reward_last": [5.0, 6.0, 4.0, 5.0],
+                            "reward_complete_last": [5.5, 6.5, 4.6, math.nan]})
+    table = paper_seed_table(summary, {"M0": 6.0, "M4": 4.5}, {"M0": "M0", "M4": "M4"}).set_index("variant")
+    assert table.loc["M0", "reward"] == "complete" and table.loc["M0", "mean"] == pytest.approx(6.0)
+    # one seed of M4 trained before the estimate: the variant stays on our definition
+    assert table.loc["M4", "reward"] == "batch-cut" and table.loc["M4", "mean"] == pytest.approx(4.5)
+    text = curve_verdicts_markdown(pd.DataFrame(), table.reset_index(), Design(variants=["M0", "M4"], baseline="M0"))
+    assert "| M0 | M0 | complete | 2 | 6.00 |" in text and "| M4 | M4 | batch-cut | 2 | 4.50 |" in text
+    assert "counts every episode whole" in text
+
+
 def test_a_folder_report_writes_when_the_curves_part(tmp_path):
     source = tmp_path / "results"
     shutil.copytree(FIXTURE, source)
@@ -102,6 +116,8 @@ def test_a_folder_report_writes_when_the_curves_part(tmp_path):
             metrics["iteration"] = range(1, 51)
             # the same rise for both, M4 one lower throughout, a little noise per seed
             metrics["episode_reward_mean"] = np.linspace(0, 2, 50) + level + rng.normal(0, 0.01, 50)
+            if model == "M4":  # trained since the estimate: a column of the paper's definition
+                metrics["episode_reward_mean_complete"] = metrics["episode_reward_mean"] + 0.5
             metrics.to_csv(path, index=False)
     out = tmp_path / "out"
     assert main(["report", "--from", str(source), "--out", str(out), "--no-figures", "--compare-paper",
@@ -113,3 +129,5 @@ def test_a_folder_report_writes_when_the_curves_part(tmp_path):
     assert "| M4 | M0 | lower from iteration 1 |" in text
     seeds = pd.read_csv(out / "paper_seeds.csv").set_index("variant")
     assert seeds.loc["M4", "paper"] == pytest.approx(4.33, abs=0.01) and seeds.loc["M4", "seeds"] == 2
+    assert seeds.loc["M4", "reward"] == "complete" and seeds.loc["M0", "reward"] == "batch-cut"
+    assert seeds.loc["M4", "mean"] == pytest.approx(4.0 + 2 * 37 / 49 + 0.5, abs=0.02)  # iterations 26..50

@@ -28,7 +28,7 @@ from sigmarl.eval_key import RULES_REVISION
 from sigmarl.readers import read_training_curve
 from sigmarl.report.inputs.coverage import run_state
 from sigmarl.rows import check_rows
-from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
+from sigmarl.run import COMPLETE_REWARD_COLUMN, REWARD_COLUMN, ROWS_FILE, Run
 
 _SEED_DIR = re.compile(r"seed(-?\d+)")
 
@@ -122,6 +122,8 @@ def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | No
     metrics = pd.DataFrame([values for _, values in history]).assign(iteration=[it for it, _ in history])
     curve = pd.DataFrame({"model": model, "seed": run.seed, "iteration": metrics["iteration"].to_numpy(),
                           "reward": metrics[REWARD_COLUMN].to_numpy()})
+    # the paper's definition, estimated (runs trained before it lack it: NaN)
+    curve["reward_complete"] = metrics.get(COMPLETE_REWARD_COLUMN, pd.Series(float("nan"), metrics.index)).to_numpy()
     times = [c for c in TIMINGS if c in metrics.columns]
     curve["seconds"] = metrics[times].sum(axis=1).to_numpy() if times else float("nan")
     return curve, None

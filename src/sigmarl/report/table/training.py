@@ -13,7 +13,7 @@ from sigmarl.errors import SigmarlError
 from sigmarl.readers import MAX_ITERATION
 
 LAST = 25  # iterations averaged for the "final" reward (the curves are noisy per iteration)
-COLUMNS = ["model", "seed", "iterations", "compute_min", "reward_last", "reward_best"]
+COLUMNS = ["model", "seed", "iterations", "compute_min", "reward_last", "reward_best", "reward_complete_last"]
 
 
 def training_summary(curves: pd.DataFrame, models: list[str]) -> pd.DataFrame:
@@ -21,7 +21,8 @@ def training_summary(curves: pd.DataFrame, models: list[str]) -> pd.DataFrame:
 
     compute_min: the summed per-iteration compute time (collection, advantages, optimisation;
     NaN where the curves do not carry it); reward_last: mean reward of the last LAST iterations;
-    reward_best: the best iteration's reward.
+    reward_best: the best iteration's reward; reward_complete_last: the same as reward_last of the
+    paper's definition, estimated (`episode_reward_mean_complete`; NaN for a run without it).
     """
     rows = []
     for model in models:
@@ -34,7 +35,9 @@ def training_summary(curves: pd.DataFrame, models: list[str]) -> pd.DataFrame:
             seconds = g["seconds"].sum(min_count=1) if "seconds" in g.columns else float("nan")
             rows.append({"model": model, "seed": int(seed), "iterations": int(g["iteration"].max()),
                          "compute_min": seconds / 60, "reward_last": g["reward"].tail(LAST).mean(),
-                         "reward_best": g["reward"].max()})
+                         "reward_best": g["reward"].max(),
+                         "reward_complete_last": g["reward_complete"].tail(LAST).mean()
+                         if "reward_complete" in g.columns else float("nan")})
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
