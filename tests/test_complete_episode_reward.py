@@ -20,13 +20,14 @@ from sigmarl.training import metrics_file
 from sigmarl.training.mappo import complete_episode_reward, mark_batch_end, rollout_stats
 
 
-def _batch(rewards: list[list[float]], dones: list[list[bool]]) -> TensorDict:
-    """A batch [E, T] with 2 agents, the second earning twice the first's reward."""
+def _batch(rewards: list[list[float]], dones: list[list[bool]], scales=(1.0, 2.0)) -> TensorDict:
+    """A batch [E, T] with an agent per scale, each earning the rewards times its scale (by
+    default 2 agents, the second earning twice the first's reward)."""
     r = torch.tensor(rewards)
     e, t = r.shape
-    reward = torch.stack([r, 2 * r], -1).unsqueeze(-1)  # [E, T, 2, 1]
+    reward = torch.stack([r * k for k in scales], -1).unsqueeze(-1)  # [E, T, A, 1]
     done = torch.tensor(dones).unsqueeze(-1)
-    nxt = TensorDict({"agents": TensorDict({"reward": reward}, [e, t, 2]), "done": done,
+    nxt = TensorDict({"agents": TensorDict({"reward": reward}, [e, t, len(scales)]), "done": done,
                       "terminated": done.clone()}, [e, t])
     return mark_batch_end(TensorDict({"next": nxt}, [e, t]))
 
@@ -88,3 +89,73 @@ def test_a_training_logs_the_estimate_and_a_run_begun_without_it_resumes_without
     assert len(rows) == 3 and all(COMPLETE_REWARD_COLUMN not in values for _, values in rows)
     # the same computation either way: the columns both logged agree
     assert [v[REWARD_COLUMN] for _, v in rows] == [v[REWARD_COLUMN] for _, v in metrics_file.read(new / "metrics.csv")]
+
+
+# ---- against the paper's definition, on episodes whose expected return is known exactly ----------
+
+P_COLLIDE, MAX_STEPS, ENVS, BATCHES, PENALTY = 0.08, 16, 64, 150, 5.0
+
+
+def _episode(rng) -> list[float]:
+    """One episode's per-step rewards: 1 a step; each step ends it with a collision (reward 1 - 5)
+    with probability P_COLLIDE; a time-out after MAX_STEPS."""
+    for k in range(1, MAX_STEPS + 1):
+        if rng.random() < P_COLLIDE:
+            return [1.0] * (k - 1) + [1.0 - PENALTY]
+    return [1.0] * MAX_STEPS
+
+
+def _expected_return() -> float:
+    """E[return] = sum_k (k - 5) p (1 - p)^(k - 1) + MAX_STEPS (1 - p)^MAX_STEPS."""
+    p = P_COLLIDE
+    return (sum((k - PENALTY) * p * (1 - p) ** (k - 1) for k in range(1, MAX_STEPS + 1))
+            + MAX_STEPS * (1 - p) ** MAX_STEPS)
+
+
+def _stream(rng, steps: int) -> tuple[list[float], list[bool]]:
+    """One environment's rewards and done flags over `steps` steps, episode after episode."""
+    rewards, dones = [], []
+    while len(rewards) < steps:
+        ep = _episode(rng)
+        rewards += ep
+        dones += [False] * (len(ep) - 1) + [True]
+    return rewards[:steps], dones[:steps]
+
+
+def test_the_estimate_from_reset_batches_matches_the_papers_mean_of_whole_episodes() -> None:
+    """Ours resets every batch; the paper's stream never does and counts each episode whole at
+    its end. Both laid out from the same kind of episodes, whose expected return is worked out
+    above: the estimate and the paper's logged mean both find it; ours (the cut segment an
+    episode) and the mean over the episodes a done ended (short ones favoured) do not."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    want = _expected_return()
+    estimate, ours, ended = [], [], []
+    for _ in range(BATCHES):  # ours: every environment from a reset, T = MAX_STEPS
+        streams = [_stream(rng, MAX_STEPS) for _ in range(ENVS)]
+        data = _batch([r for r, _ in streams], [d for _, d in streams], scales=(1.0,))
+        stats = rollout_stats(data, MAX_STEPS)
+        estimate.append(stats[COMPLETE_REWARD_COLUMN])
+        ours.append(stats[REWARD_COLUMN])
+        real = torch.tensor([d for _, d in streams])  # the episodes' own ends, no batch end marked
+        r = torch.tensor([x for x, _ in streams])
+        starts = torch.cat([torch.ones(ENVS, 1, dtype=torch.bool), real[:, :-1]], 1)
+        episode = torch.cumsum(starts.flatten().int(), 0) - 1
+        returns = torch.zeros(int(episode.max()) + 1).index_add_(0, episode, r.flatten())
+        ended.append(float(returns[torch.unique(episode[real.flatten()])].mean()))
+    paper = []  # the paper's: each environment one stream; per batch, the episodes ending in it
+    for rewards, dones in (_stream(rng, MAX_STEPS * BATCHES) for _ in range(ENVS)):
+        running, per_batch = 0.0, [[] for _ in range(BATCHES)]
+        for t, (x, d) in enumerate(zip(rewards, dones, strict=True)):
+            running += x
+            if d:
+                per_batch[t // MAX_STEPS].append(running)
+                running = 0.0
+        paper.append(per_batch)
+    paper_means = [float(np.mean([v for env in paper for v in env[b]])) for b in range(BATCHES)]
+    assert want == pytest.approx(5.53, abs=0.01)
+    # per batch the estimate's mean over 64 episodes has sd about 5 / 8; over 150 batches about 0.05
+    assert np.mean(estimate) == pytest.approx(want, abs=0.2)
+    assert np.mean(paper_means[1:]) == pytest.approx(want, abs=0.2)  # the first batch began at a reset
+    assert np.mean(ours) < want - 1.0 and np.mean(ended) < want - 0.5
