@@ -16,7 +16,7 @@ Rewards of variants trained under different rules are not measured alike: the pa
 change the reward (a lagged steering penalty) and where episodes end (terminal time-outs).
 
 Nor are rewards logged alike. The paper's collector carries episodes across batch ends and counts
-each whole; ours resets every batch and counts the cut segment as an episode, about 0.6 lower
+each whole; ours resets every batch and counts the cut segment as an episode, 0.5–0.6 lower
 (docs/deviations.md). Against the paper, a variant whose every seed logged the estimate of the
 paper's definition (`episode_reward_mean_complete`) is compared on it ("complete"); older runs
 on ours ("batch-cut"), and the table says which.
@@ -180,7 +180,7 @@ def curve_verdicts_markdown(separation: pd.DataFrame, paper_seeds: pd.DataFrame,
                   "The paper's reward counts every episode whole (its collector carries episodes across batch ends). "
                   f"our reward: {COMPLETE}, the estimate of that definition (`episode_reward_mean_complete`); "
                   f"{CUT}, our logged `episode_reward_mean` (runs trained before the estimate), which counts the "
-                  "segment a batch's end cuts as an episode and sits about 0.6 below it (docs/deviations.md)."]
+                  "segment a batch's end cuts as an episode and sits 0.5–0.6 below it on a trained policy (docs/deviations.md)."]
     return "\n".join(line for line in lines if line is not None) + "\n" if lines else ""
 
 
