@@ -1,9 +1,11 @@
 """The paper's mean episode reward, estimated from a training batch (`episode_reward_mean_complete`).
 
 Hand-worked batches check which episodes it counts; a real training shows the column in
-metrics.csv, and a run begun without it (an older sigmarl) resumed without it. Its agreement
-with a collector that never resets is measured by benchmarks/paper_episode_reward.py (the
-figure is in docs/deviations.md)."""
+metrics.csv, and a run begun without it (an older sigmarl) resumed without it; episodes whose
+expected return is worked out by hand check it, and the paper's own count over a stream that is
+never reset, against that number. On the real environment and a committed policy, its agreement
+with a torchrl collector that never resets is measured by benchmarks/paper_episode_reward.py
+(the figures are in docs/deviations.md)."""
 
 from __future__ import annotations
 
