@@ -14,6 +14,7 @@ from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
 from sigmarl.paths import add_user_conf_dir, config_files
 from sigmarl.resources import use_threads
 from sigmarl.scenarios import scenario, scenario_names
+from sigmarl.watch import add_watch_options, cmd_animate
 
 
 def _map_names() -> list[str]:
@@ -84,6 +85,8 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     from sigmarl.compose import compose_config
     from sigmarl.evaluation import target
 
+    if args.animate:
+        return cmd_animate(args)
     target.check_evaluate_overrides(args.overrides)
     for name in args.scenario or ():  # a wrong name is answered before Hydra, in well under a second
         scenario(name)
@@ -96,7 +99,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     from sigmarl.metrics import scaled, units_text
 
     rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
-    with _run_folder_held(path):  # not while `sigmarl train` writes it (its best.pt may change)
+    with target.run_folder_held(path):  # not while `sigmarl train` writes it (its best.pt may change)
         rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
     means = scaled(rows).groupby(rows["scenario"], sort=False).mean()
     print(f"{rows['model'].iloc[0]} ({path}), {cfg.eval.n_sims} simulations x {cfg.eval.steps} steps, "
@@ -105,23 +108,6 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     print(f"wrote {rows_file}")
     if run_id:
         print(f"MLflow evaluation run {run_id} in experiment {cfg.tracking.experiment!r}")
-
-
-def _run_folder_held(checkpoint: Path):
-    """The lock of the run folder holding `checkpoint` (refused in one line while another process
-    trains it); nothing to hold for a checkpoint elsewhere or in a folder this user cannot write."""
-    import contextlib
-
-    from sigmarl.run import Run
-
-    run = Run(checkpoint.resolve().parent)
-    if not (run.config_file.exists() or run.resume_file.exists()):
-        return contextlib.nullcontext()
-    try:
-        os.close(os.open(run.lock_file, os.O_RDWR | os.O_CREAT, 0o644))
-    except OSError:  # a read-only copy of a results folder: nobody trains there
-        return contextlib.nullcontext()
-    return run.lock()
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -310,6 +296,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "study's, the paper's four); repeatable")
     ev.add_argument("--out", help="the CSV for the per-simulation rows (default: evaluation_rows.csv beside the checkpoint)")
     ev.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. eval.n_sims=8 eval.steps=600")
+    add_watch_options(ev)
     ev.set_defaults(func=cmd_evaluate)
     sw = sub.add_parser("sweep", help="train the study's variants x seeds in parallel (Hydra multirun), then evaluate each")
     sw.add_argument("overrides", nargs="*", default=[],

@@ -52,7 +52,7 @@ FLOORS: tuple[Floor, ...] = (
           ("sigmarl.sweep", "sigmarl.report")),
     Floor("commands", "the command line and what only it drives: `seeds=auto`, shell completion, "
           "Hydra's search-path plugin",
-          ("sigmarl.cli", "sigmarl.__main__", "sigmarl.adaptive", "sigmarl.completion",
+          ("sigmarl.cli", "sigmarl.__main__", "sigmarl.adaptive", "sigmarl.completion", "sigmarl.watch",
            "hydra_plugins.sigmarl_config_dirs")),
 )
 

@@ -32,6 +32,7 @@ from sigmarl.maps.plot import plot_map
 
 Policy = Callable[[TensorDictBase], TensorDictBase]
 COLLISION = (1.0, 0.0, 0.0)  # pure red: no agent colour comes close (see _agent_colors)
+LABEL = (0.7, 0.0, 0.0)
 FIGSIZE = (6.0, 5.4)
 DPI = 100
 
@@ -53,6 +54,8 @@ class Snapshot:
     corners: np.ndarray  # [A, 4, 2]
     ref_points: np.ndarray  # [A, P, 2]
     collided: np.ndarray  # [A] bool: agent-agent or agent-lane
+    agent_hit: np.ndarray  # [A] bool: in contact with another agent
+    lane_hit: np.ndarray  # [A] bool: in contact with a lane boundary
     n_agent_collisions: int
     n_lane_collisions: int
     step: int | None
@@ -97,6 +100,8 @@ def snapshot(scenario: TrafficScenario, env_index: int = 0, step: int | None = N
         corners=rect_corners(pos, heading, LENGTH, WIDTH).numpy(),
         ref_points=ref.numpy(),
         collided=shown.numpy(),
+        agent_hit=agent_hit.numpy(),
+        lane_hit=lane_hit.numpy(),
         n_agent_collisions=int(agent_hit.sum()),
         n_lane_collisions=int(lane_hit.sum()),
         step=step,
@@ -143,24 +148,38 @@ class Scene:
             c=np.repeat(np.array(self.colors), n_ref, axis=0),
             visible=show_ref_points,
         )
+        # a colliding vehicle's label: what it hit ("agent", "lane" or both), in a darker red
+        # than the vehicle's edge, so that pure red stays where the vehicle is
+        self.labels = [ax.text(0, 0, "", color=LABEL, fontsize=7, fontweight="bold", zorder=6,
+                               visible=False) for _ in range(n)]
 
-    def update(self, snap: Snapshot) -> None:
+    def update(self, snap: Snapshot, so_far: tuple[int, int, int] | None = None) -> None:
+        """Draw `snap`. With `so_far` = (steps, steps with an agent-agent contact, steps with
+        a lane contact) up to this one, the title counts the simulation's collisions so far,
+        as its evaluation rows count them (CR_AA = the second / the first)."""
         for patch, corners, hit in zip(self.vehicles, snap.corners, snap.collided, strict=True):
             patch.set_xy(corners)
             patch.set_edgecolor(COLLISION if hit else "black")
             patch.set_linewidth(1.8 if hit else 0.6)
             patch.set_hatch("////" if hit else None)
+        for label, corners, agent, lane in zip(self.labels, snap.corners, snap.agent_hit, snap.lane_hit, strict=True):
+            label.set_visible(bool(agent or lane))
+            label.set_text(" + ".join(w for w, on in (("agent", agent), ("lane", lane)) if on))
+            label.set_position(corners.max(0))  # beside the vehicle's upper right corner
         if self.show_ref_points:
             self.ref_dots.set_offsets(snap.ref_points.reshape(-1, 2))
         step = "" if snap.step is None else f" · step {snap.step}"
-        self.ax.set_title(
-            f"{self.name}{step} · collisions: {snap.n_agent_collisions} agent, "
-            f"{snap.n_lane_collisions} lane",
-            fontsize=9,
-        )
+        now = f"this step: {snap.n_agent_collisions} agent, {snap.n_lane_collisions} lane contacts"
+        if so_far is None:
+            title = f"{self.name}{step} · {now}"
+        else:
+            steps, aa, al = so_far
+            title = (f"{self.name}{step}\nsteps with a collision so far: {aa} agent-agent "
+                     f"(CR_AA {aa / steps:.3f}), {al} agent-lane (CR_AL {al / steps:.3f})\n{now}")
+        self.ax.set_title(title, fontsize=8 if so_far else 9)
 
     def _dynamic(self) -> list:
-        return [*self.vehicles, self.ref_dots, self.ax.title]
+        return [*self.vehicles, *self.labels, self.ref_dots, self.ax.title]
 
     def _cache_background(self) -> None:
         """Draw everything once (fixing the layout), then keep a picture of the static part."""

@@ -6,7 +6,7 @@ x 1200 steps x 15 agents run in constant memory.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import pandas as pd
@@ -78,6 +78,22 @@ def evaluate_policy(
     with); the scenario supplies map and agent count. The same `seed` gives every
     model the same initial states. The policy acts under the dynamics and observation of its
     `cfg.rules`; what is measured is always ours (`paper_rules.for_evaluation`).
+    """
+    sums = None
+    bar = Progress(steps, f"{cfg.model} seed {cfg.seed}", f"evaluate {scenario}", enabled=progress)
+    for sc in test_steps(policy, cfg, scenario, n_sims, steps, seed, n_agents, device):
+        bar.update(1)
+        sums = sums or _Sums.zeros(n_sims, sc.pos.device)
+        sums.add(sc)
+    bar.close()
+    return sums.rows(scenario, steps, sc.n_agents)
+
+
+def test_steps(policy, cfg: Config, scenario: str, n_sims: int, steps: int, seed: int,
+               n_agents: int | None = None, device: str | None = None) -> Iterator:
+    """The evaluation's rollout of `n_sims` simulations: yields the scenario after each of
+    `steps` steps (its tensors hold the state that step ended in, before anyone respawned).
+    The animation walks the same steps, so its simulation k is the rows' simulation k.
 
     The scenario is stepped directly, as VMAS would step it (`step_scenario`): a test
     rollout never resets an environment and reads only the scenario's own tensors, so the
@@ -91,14 +107,9 @@ def evaluate_policy(
     act = as_tensor_policy(policy)
     sc.reset_world_at(None)  # the rollout's own reset, as env.reset() does
     obs = sc.current_observation()
-    sums = _Sums.zeros(n_sims, obs.device)
-    bar = Progress(steps, f"{cfg.model} seed {cfg.seed}", f"evaluate {scenario}", enabled=progress)
     for _ in range(steps):
-        bar.update(1)
         obs = step_scenario(sc, _action(act, obs, (n_sims, n_agents), scenario, cfg))
-        sums.add(sc)
-    bar.close()
-    return sums.rows(scenario, steps, n_agents)
+        yield sc
 
 
 def _action(act: Policy, obs: torch.Tensor, shape: tuple[int, int], scenario: str, cfg: Config) -> torch.Tensor:

@@ -7,6 +7,7 @@ torch, the simulator or MLflow (seconds each).
 
 from __future__ import annotations
 
+import os
 import tempfile
 from pathlib import Path
 
@@ -67,3 +68,18 @@ def into_its_experiment(path: Path, cfg: Config, overrides: list[str]) -> Path:
     if not chosen and run.config_file.is_file():
         cfg.tracking.experiment = read_run_config(run.config_file).tracking.experiment
     return path
+
+
+def run_folder_held(checkpoint: Path):
+    """The lock of the run folder holding `checkpoint` (refused in one line while another process
+    trains it); nothing to hold for a checkpoint elsewhere or in a folder this user cannot write."""
+    import contextlib
+
+    run = Run(checkpoint.resolve().parent)
+    if not (run.config_file.exists() or run.resume_file.exists()):
+        return contextlib.nullcontext()
+    try:
+        os.close(os.open(run.lock_file, os.O_RDWR | os.O_CREAT, 0o644))
+    except OSError:  # a read-only copy of a results folder: nobody trains there
+        return contextlib.nullcontext()
+    return run.lock()

@@ -316,5 +316,6 @@ def _animations(path: Path, cfg: Config, out_dir: Path, steps: int, scenarios: l
     # lazy: torch only for --animations
     from sigmarl.evaluation.animation import animate_checkpoint
 
+    # simulation 0 of the evaluation's batch: the rows' simulation 0
     return animate_checkpoint(path, scenarios, steps, int(cfg.eval.seed), out_dir, prefix=cfg.study.baseline,
-                              device=cfg.device)
+                              device=cfg.device, n_sims=int(cfg.eval.n_sims))
