@@ -8,6 +8,7 @@ import json
 
 import pandas as pd
 import pytest
+from PIL import Image
 from tutorials import run_tutorial
 
 pytestmark = pytest.mark.slow
@@ -28,6 +29,8 @@ def test_own_ablation(tmp_path):
     assert set(table["scenario"].dropna()) >= {"CPM", "Intersection", "My-Roundabout"}
     rows = pd.read_csv(tmp_path / "runs" / "narrow" / "W64" / "seed0" / "evaluation_rows.csv")
     assert set(rows["scenario"]) == {"CPM", "Intersection", "My-Roundabout"}
+    for k in (0, 1):
+        assert Image.open(tmp_path / "reports" / "animations" / f"W64_seed1_My-Roundabout_sim{k}.gif").n_frames == 100
 
 
 def test_plan_and_seeds_auto(tmp_path):
