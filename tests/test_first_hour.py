@@ -97,6 +97,39 @@ def test_version_and_info(capsys):
     assert "ppo             paper, smoke" in out and "base_" not in out
 
 
+def test_info_lists_the_users_config_folders_beside_the_package(tmp_path, monkeypatch, capsys):
+    """`--config-dir` (before --info) and $SIGMARL_CONFIG_PATH: each folder numbered, its study,
+    map and scenario listed on their group's line after the package's, a shadowing name starred."""
+    monkeypatch.delenv("SIGMARL_CONFIG_PATH", raising=False)
+    mine, theirs = tmp_path / "my_conf", tmp_path / "lab_conf"
+    for folder, files in ((mine, {"study/narrow.yaml": "# @package _global_\nstudy:\n  name: narrow\n",
+                                  "map/my_map.yaml": "defaults:\n  - base_map\n\nname: my_map\nkind: roundabout\n",
+                                  "scenario/My-Map.yaml": "map: my_map\nn_agents: 4\n"}),
+                          (theirs, {"study/quick.yaml": "# @package _global_\nstudy:\n  name: quick\n"})):
+        for name, text in files.items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text(text)
+    monkeypatch.setenv("SIGMARL_CONFIG_PATH", str(theirs))
+    with pytest.raises(SystemExit) as done:
+        main(["--config-dir", str(mine), "--info"])
+    assert done.value.code == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert f"your config folder [1]: {theirs} (searched first; a name it shares shadows sigmarl's, marked *)" in lines
+    assert any(line.startswith(f"your config folder [2]: {mine} ") for line in lines)
+    study = next(line for line in lines if line.startswith("  study "))
+    assert study.endswith("widths; [1] quick*; [2] narrow") and ", quick," in study
+    assert next(line for line in lines if line.startswith("  map ")).endswith("roundabout_2; [2] my_map")
+    assert next(line for line in lines if line.startswith("scenarios")).endswith("roundabout_2; [2] My-Map")
+    monkeypatch.delenv("SIGMARL_CONFIG_PATH")
+    with pytest.raises(SystemExit):
+        main(["--info"])
+    out = capsys.readouterr().out
+    assert "your config folder" not in out and "[1]" not in out and "My-Map" not in out
+    with pytest.raises(SystemExit) as done:
+        main(["--config-dir", str(tmp_path / "nowhere"), "--info"])
+    assert done.value.code == 2 and "no such folder" in capsys.readouterr().err
+
+
 def _complete(line: str) -> list[str]:
     """What bash completes at the end of `line` with the script `--completion bash` prints."""
     script = bash_script(build_parser())

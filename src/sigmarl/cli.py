@@ -218,20 +218,25 @@ class _PrintAndExit(argparse.Action):
 
     def __call__(self, parser, namespace, values, option_string=None):
         try:
-            print(self.text(parser, values))
+            print(self.text(parser, values, namespace))
         except BrokenPipeError:  # `sigmarl --info | head`: the reader left
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         parser.exit()
 
 
-def _completion(parser: argparse.ArgumentParser, shell: str) -> str:
+def _completion(parser: argparse.ArgumentParser, shell: str, namespace: argparse.Namespace) -> str:
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.completion import bash_script
 
     return bash_script(parser)
 
 
-def _info(parser: argparse.ArgumentParser, key: str | None) -> str:
+def _info(parser: argparse.ArgumentParser, key: str | None, namespace: argparse.Namespace) -> str:
+    try:
+        for folder in namespace.config_dir:  # those named before --info: theirs are listed too
+            add_user_conf_dir(folder)
+    except SigmarlError as e:
+        parser.exit(2, f"sigmarl: error: {e}\n")
     if key:
         # lazy: config_help's dataclass introspection costs `sigmarl --help` a third of its start-up
         from sigmarl.config_help import describe
@@ -273,7 +278,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "searched before sigmarl's; repeatable")
     p.add_argument("--version", action="version", version=f"sigmarl {__version__}")
     p.add_argument("--info", action=_PrintAndExit, nargs="?", text=_info, metavar="KEY",
-                   help="versions, the config folder, the config groups and their options; with KEY "
+                   help="versions, the config folders, the config groups and their options (with --config-dir "
+                        "DIR before it or $SIGMARL_CONFIG_PATH, yours too, marked [1], [2], ...); with KEY "
                         "(ppo.lr, or a group: ppo) its type, default and help")
     p.add_argument("--completion", action=_PrintAndExit, choices=["bash"], text=_completion,
                    help="print a shell completion script: eval \"$(sigmarl --completion bash)\" "

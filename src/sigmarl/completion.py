@@ -9,7 +9,7 @@ import shlex
 from importlib import metadata
 
 import sigmarl
-from sigmarl.paths import conf_dir
+from sigmarl.paths import conf_dir, user_conf_dirs
 from sigmarl.scenarios import scenario_names
 from sigmarl.suggest import schema_keys
 
@@ -72,20 +72,37 @@ def bash_script(parser: argparse.ArgumentParser) -> str:
 
 
 def info() -> str:
-    """`sigmarl --info`: versions, where the configs are, the groups and their options."""
+    """`sigmarl --info`: versions, where the configs are, the groups and their options; the
+    options of the user's config folders (--config-dir, $SIGMARL_CONFIG_PATH) beside the
+    package's, each marked with its folder's number."""
     def version(package: str) -> str:
         try:
             return metadata.version(package)
         except metadata.PackageNotFoundError:
             return "not installed"
 
+    users = user_conf_dirs()
     lines = [f"sigmarl {sigmarl.__version__} (Python {platform.python_version()}, {sigmarl.__path__[0]})",
-             f"config folder: {conf_dir()}",
-             "config groups (GROUP=OPTION; defaults: map=cpm_intersection obs=full network=paper ppo=paper "
-             "rules=ours study=paper hydra/launcher=joblib in a sweep):"]
-    lines += [f"  {g:<15} {', '.join(group_options(g))}" for g in GROUPS]
-    lines += [f"scenarios (eval.scenarios=[...]): {', '.join(scenario_names())}",
+             f"config folder: {conf_dir()}"]
+    lines += [f"your config folder [{i}]: {folder} (searched first; a name it shares shadows sigmarl's, marked *)"
+              for i, folder in enumerate(users, 1)]
+    lines += ["config groups (GROUP=OPTION; defaults: map=cpm_intersection obs=full network=paper ppo=paper "
+              "rules=ours study=paper hydra/launcher=joblib in a sweep):"]
+    lines += [f"  {g:<15} {', '.join(group_options(g))}{_users_options(g, users)}" for g in GROUPS]
+    shipped = [s for s in scenario_names() if (conf_dir() / "scenario" / f"{s}.yaml").is_file()]
+    lines += [f"scenarios (eval.scenarios=[...]): {', '.join(shipped)}{_users_options('scenario', users)}",
               "packages: " + ", ".join(f"{p} {version(p)}" for p in
                                        ("torch", "torchrl", "tensordict", "vmas", "hydra-core", "mlflow")),
               "print a command's composed config: sigmarl COMMAND --cfg job [overrides]"]
     return "\n".join(lines)
+
+
+def _users_options(group: str, users: list) -> str:
+    """`; [1] a, b*` for the options each user folder adds to `group` (* where one shadows
+    the package's), or ""."""
+    shipped = {p.stem for p in (conf_dir() / group).glob("*.yaml")}
+    parts = []
+    for i, folder in enumerate(users, 1):
+        if names := sorted(p.stem for p in (folder / group).glob("*.yaml")):
+            parts.append(f"[{i}] " + ", ".join(n + "*" * (n in shipped) for n in names))
+    return "".join(f"; {p}" for p in parts)
