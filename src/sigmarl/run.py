@@ -38,6 +38,7 @@ DONE_FILE = "evaluated.txt"  # the sweep's mark: trained and evaluated (the eval
 FAILED_FILE = "failed.txt"  # the sweep's mark: the job failed (the error)
 BLOCK_FILE = "block.json"  # a seed block's seed: the block it trains in (its seeds)
 NEXT_RESUME_FILE = "checkpoint.next.pt"  # a block's resume point while its seeds' are committed together
+PROVENANCE_FILE = "provenance.json"  # what each start of the training ran on (tracking/provenance.py)
 
 # The metric whose history tells which iterations a training run holds (metrics.csv, MLflow).
 REWARD_COLUMN = "episode_reward_mean"
@@ -122,6 +123,7 @@ class Run:
     failed_file = property(lambda self: self.path(FAILED_FILE))
     block_file = property(lambda self: self.path(BLOCK_FILE))
     next_resume_file = property(lambda self: self.path(NEXT_RESUME_FILE))
+    provenance_file = property(lambda self: self.path(PROVENANCE_FILE))
 
     def checkpoint(self, which: str) -> Path:
         """The policy a run is evaluated with: eval.checkpoint `best` or `final`."""

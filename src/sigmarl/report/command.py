@@ -20,6 +20,7 @@ from sigmarl.report.inputs.columns import check_columns, one_config_per_run, var
 from sigmarl.report.inputs.coverage import belongs, check, left_out
 from sigmarl.report.inputs.folder import checkpoint_of, read_many, read_results, run_folders
 from sigmarl.report.table.aggregate import label_order
+from sigmarl.report.table.provenance import run_records
 from sigmarl.run import Run
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, open_tracker, records
@@ -70,7 +71,8 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     out_dir = out_dir or report_folder(experiment, cfg, options)
     configs = _column_configs(rows, lambda rid: records.evaluated_config(client, rid), expected)
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
-                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options, notes, configs)
+                    lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options, notes, configs,
+                    run_records(folders, rows))
     tracker.log_report(report.composite, report.paths.values(), {
         "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
         **what_it_reports(report, cfg, options),
@@ -121,7 +123,8 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     tracker = open_tracker(cfg)  # checked before any work
     configs = _folder_configs(results.runs)
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
-                    options, extra_notes=[*results.notes, *notes], configs=configs)
+                    options, extra_notes=[*results.notes, *notes], configs=configs,
+                    provenance=run_records(folders, results.rows))
     tracker.log_report(report.composite, report.paths.values(),
                        {"source": ",".join(str(r.resolve()) for r in roots), **what_it_reports(report, cfg, options)},
                        source=",".join(str(r) for r in roots))
@@ -186,7 +189,8 @@ def _folder_configs(runs) -> dict[str, Config]:
 
 
 def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callable[[], Path],
-           options: ReportOptions, extra_notes=(), configs: dict[str, Config] | None = None) -> Report:
+           options: ReportOptions, extra_notes=(), configs: dict[str, Config] | None = None,
+           provenance: dict | None = None) -> Report:
     """Tables, figures, the scenarios' maps and the baseline's animations, drawn into a staging
     folder and moved into out_dir only when all are complete."""
     models = options.models
@@ -199,7 +203,7 @@ def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callab
                              order=list(cfg.study.variants) or None, baseline=cfg.study.baseline,
                              design=design_of(cfg.study, models or sorted(set(rows["model"].astype(str)))),
                              configs=configs, defaults=_defaults() if configs is not None else None,
-                             commit=git_commit())
+                             commit=git_commit(), provenance=provenance)
         report = build_report(rows, build, curves)
         known = [s for s in report.table.scenarios if s in scenario_names()]  # the maps the rows ran on
         if options.figures:

@@ -54,6 +54,8 @@ class BuildOptions:
     configs: dict | None = None
     defaults: object | None = None
     commit: str | None = None
+    # label -> seed -> its run folder's provenance records (None: not recorded); None: not read
+    provenance: dict | None = None
 
 
 class UndeclaredFile(RuntimeError):

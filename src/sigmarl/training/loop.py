@@ -30,7 +30,7 @@ from sigmarl.maps import load_map
 from sigmarl.paths import ensure_writable
 from sigmarl.progress import Progress
 from sigmarl.run import Run
-from sigmarl.tracking import Tracker, flatten, open_tracker
+from sigmarl.tracking import Tracker, flatten, open_tracker, provenance
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training.learner import Learner, iteration_seed
 from sigmarl.training.networks import make_actor
@@ -199,8 +199,10 @@ def _train(cfgs: list[Config], trackers: Sequence[Tracker] | None) -> list[Train
                            + "); they were not trained as this block: train them alone, or as the block they were")
     several = len(cfgs) > 1  # a block of one leaves what it always left: no block tag, no block.json
     tags = {"block": block_name(first.model, [c.seed for c in cfgs])} if several else {}
+    record = provenance.collect(first.threads, str(device))  # what this start runs on
     for r, t in zip(runs, trackers, strict=True):  # the stores are checked before any work
-        r.open_record(t, tags)
+        r.provenance = record
+        r.open_record(t, {**tags, **provenance.as_tags(record)})
     try:
         learner = Learner(first, [c.seed for c in cfgs], device)
         for k, r in enumerate(runs):

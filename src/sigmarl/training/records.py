@@ -30,7 +30,7 @@ from sigmarl.config import Config, as_dict, to_yaml
 from sigmarl.errors import SigmarlError, Terminated, was_interrupted
 from sigmarl.readers import read_run_config
 from sigmarl.run import REWARD_COLUMN, Run, write_atomic
-from sigmarl.tracking import Tracker, TrainingRun
+from sigmarl.tracking import Tracker, TrainingRun, provenance
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
 
@@ -48,6 +48,7 @@ class SeedRun:
         self.history: list[dict[str, float]] = []
         self.record: TrainingRun | None = None
         self.dims: dict[str, Any] = {}
+        self.provenance: dict[str, Any] | None = None  # what this start runs on (tracking.provenance)
 
     @property
     def run_id(self) -> str | None:
@@ -75,6 +76,8 @@ class SeedRun:
         """A resume: drop the rows after the resume point (computed again) and send the tracker
         what it missed. A new run: its config.yaml, and no rows."""
         metrics_path = self.run.metrics_file
+        if self.provenance is not None:
+            provenance.add(self.run, self.provenance, self.start)
         if self.state:
             self._repair_config()
             self.record.sync_metrics(metrics_file.truncate(metrics_path, self.start))

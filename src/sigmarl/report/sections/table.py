@@ -11,6 +11,7 @@ from sigmarl.report.table.composite import composite_scores
 from sigmarl.report.table.header import study_markdown
 from sigmarl.report.table.notes import table_notes
 from sigmarl.report.table.paper import paper_values
+from sigmarl.report.table.provenance import provenance_markdown
 from sigmarl.report.table.scores import (
     aggregate_scores,
     composite_intervals,
@@ -34,7 +35,10 @@ def study_section(d: Draft) -> None:
     o = d.options
     if o.configs is None or o.defaults is None:
         return
-    d.write("study", "study.md", study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit))
+    text = study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit)
+    if o.provenance is not None:  # study.md only: table.md's header stays what the rows alone give
+        text += "\n" + "\n".join(provenance_markdown(o.provenance, d.models)) + "\n"
+    d.write("study", "study.md", text)
 
 
 def table_section(d: Draft) -> None:
@@ -82,7 +86,10 @@ STUDY = Section("study", {
     "study.md": "what the report compares: per column its label, fingerprint, seeds and the training settings "
                 "it changes against the baseline; the settings every column shares where they are not the "
                 "defaults, a sweep's command line included; the training and evaluation budget; the commit "
-                "the report was built at"}, study_section, when="when the columns' training configs are known (by `sigmarl report`, always)")
+                "the report was built at; what each column's runs were trained on (Python and library versions, "
+                "CPU and GPU, threads, sigmarl commit and whether its tree was dirty, from each run folder's "
+                "`provenance.json`; \"not recorded\" for runs from before it), with the columns whose library "
+                "versions or hardware differ"}, study_section, when="when the columns' training configs are known (by `sigmarl report`, always)")
 
 TABLE = Section("table", {
     "table.md": "the same header as `study.md`, less the commit, then Table I: each metric per scenario and "
