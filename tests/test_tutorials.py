@@ -11,6 +11,8 @@ import pytest
 from PIL import Image
 from tutorials import run_tutorial
 
+from sigmarl.errors import SigmarlError
+
 pytestmark = pytest.mark.slow
 
 
@@ -58,15 +60,39 @@ def test_cluster_on_one_machine(tmp_path):
     assert _table(tmp_path / "reports" / "sigmarl-quick_models-M0+M4" / "table.csv") == ["M0", "M4"]
 
 
-def test_a_map_of_ones_own(tmp_path):
+def test_a_map_of_ones_own(tmp_path, monkeypatch):
+    """The OSM tutorial as written: the file, its lane width checked, its map config and scenario
+    in a config folder, listed by --info, trained on, evaluated and watched."""
+    from sigmarl.maps import load_map, map_config
     from sigmarl.maps.osm import load_osm
+    from sigmarl.paths import CONFIG_PATH
 
-    run_tutorial("tutorials/osm-map.md", tmp_path)
+    done = run_tutorial("tutorials/osm-map.md", tmp_path)
+    shown = done[0].stdout  # maps show my_map.osm ... map.lane_width=0.25
+    assert "4 beside 5 (0.250 m apart, 1.00 widths)" in shown  # what the page says it prints
     assert (tmp_path / "my_map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    road = load_osm(tmp_path / "my_map.osm")
-    assert sorted(r.lanelet_ids for r in road.routes) == [(1, 2), (1, 3), (4,)]  # what the page says
-    runs = list((tmp_path / "runs").rglob("final.pt"))
+    road = load_osm(tmp_path / "my_map.osm", lane_width=0.25)
+    assert sorted(r.lanelet_ids for r in road.routes) == [(1, 2), (1, 3), (4,), (5,)]  # what the page says
+    # the page's other widths: 1.25 widths apart at 0.20 m, not side by side at 0.15 m
+    assert load_osm(tmp_path / "my_map.osm", lane_width=0.20).lanelets[5].beside_left == [4]
+    assert load_osm(tmp_path / "my_map.osm", lane_width=0.15).lanelets[5].beside_left == []
+    info = done[1].stdout
+    assert next(line for line in info.splitlines() if line.startswith("  map ")).endswith("; [1] my_map")
+    assert info.rstrip().count("[1] My-Map") == 1
+    runs = list((tmp_path / "runs" / "my_map").rglob("final.pt"))
     assert len(runs) == 1, runs
+    rows = pd.read_csv(tmp_path / "runs" / "my_map" / "M0" / "seed0" / "evaluation_rows.csv")
+    assert set(rows["scenario"]) == {"My-Map"} and len(rows) == 4
+    assert Image.open(tmp_path / "reports" / "animations" / "M0_seed0_My-Map_sim0.gif").n_frames == 100
+    # the relative path is read from the folder the command runs in, not from the config's
+    monkeypatch.setenv(CONFIG_PATH, str(tmp_path / "my_conf"))
+    cfg = map_config("my_map")
+    assert cfg.path == "my_map.osm" and cfg.lane_width == 0.25 and cfg.n_arms == 4  # a schema default
+    monkeypatch.chdir(tmp_path)
+    assert len(load_map(cfg).lanelets) == 5
+    monkeypatch.chdir(tmp_path / "my_conf")
+    with pytest.raises(SigmarlError, match="my_map.osm"):
+        load_map(cfg)
 
 
 def test_a_tracker_of_ones_own(tmp_path):

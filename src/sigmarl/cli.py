@@ -56,13 +56,14 @@ def cmd_maps(args: argparse.Namespace) -> None:
         return
     if not args.map:
         raise SigmarlError("sigmarl maps show needs a map name, e.g. `sigmarl maps show cpm`")
-    from sigmarl.maps.plot import save_map_figure  # lazy, as above
+    from sigmarl.maps.multilane import width_check  # lazy, as above
+    from sigmarl.maps.plot import save_map_figure
 
     m = _resolve_map(args.map, args.overrides)
     out = Path(args.out or Path("reports") / "maps" / f"{m.name}.png")
     out.parent.mkdir(parents=True, exist_ok=True)
     save_map_figure(m, out, show_ids=args.ids)
-    print(f"wrote {out}")
+    print(f"wrote {out}\n{width_check(m)}")
 
 
 def cmd_train(args: argparse.Namespace) -> None:

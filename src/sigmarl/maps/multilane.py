@@ -158,3 +158,25 @@ def corridor_side(lane: Lanelet, side: str, lanelets: dict[int, Lanelet], _seen:
     for p in pieces[1:]:  # drop a point repeated where two pieces meet
         out.append(p[1:] if np.linalg.norm(out[-1][-1] - p[0]) < _TOL else p)
     return np.concatenate(out)
+
+
+def side_by_side_spacing(lanelets: dict[int, Lanelet], width: float) -> list[tuple[int, int, float]]:
+    """(L, M, median distance in m of M's center line from L's where it runs beside it) for each
+    lanelet M found beside lanelet L on its left: the spacing that a lane width should match
+    (boundaries then meet)."""
+    out = []
+    for lane in lanelets.values():
+        for j in lane.beside_left:
+            d, _, _ = project(lane.center, densify(lanelets[j].center))
+            beside = d[(d >= BESIDE_MIN * width) & (d <= BESIDE_MAX * width)]
+            out.append((lane.id, j, float(np.median(beside if len(beside) else d))))
+    return out
+
+
+def width_check(road_map) -> str:
+    """One line on a map's lane width against its lanes drawn side by side (`maps show`)."""
+    w = road_map.lane_width
+    pairs = side_by_side_spacing(road_map.lanelets, w)
+    found = "; ".join(f"{m} beside {lane} ({d:.3f} m apart, {d / w:.2f} widths)" for lane, m, d in pairs)
+    return (f"lane width {w:.3f} m; same-direction lanes side by side (center lines {BESIDE_MIN}-{BESIDE_MAX} "
+            f"widths apart): {found or 'none'}")
