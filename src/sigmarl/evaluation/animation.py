@@ -2,7 +2,7 @@
 (test mode, deterministic actions, the evaluation's seed and simulation count), one GIF (and
 an MP4 where an ffmpeg writer is installed) per scenario and chosen simulation.
 
-The animation walks the evaluation's own steps (`rollout.test_steps`), so simulation k of an
+The animation walks the evaluation's own steps (`rollout.rollout_steps`), so simulation k of an
 animation is simulation k of the evaluation rows, and its titles' running collision counts
 reach the rows' CR_AA and CR_AL times the steps.
 """
@@ -18,7 +18,7 @@ import torch
 
 from sigmarl.env.render import Scene, snapshot
 from sigmarl.errors import SigmarlError
-from sigmarl.evaluation.rollout import test_steps
+from sigmarl.evaluation.rollout import rollout_steps
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training.loop import load_policy
@@ -92,7 +92,7 @@ def animate(path: Path, scenario: str, sims: list[int], steps: int, n_sims: int,
     mp4 = mp4_writer_installed() if mp4 is None else mp4
     writers = {k: _Frames(out_dir / f"{name}_{scenario}_sim{k}", mp4) for k in sims}
     scenes, films = {}, {k: Film([]) for k in sims}
-    for t, sc in enumerate(test_steps(actor, cfg, scenario, n_sims, steps, seed, n_agents, device), start=1):
+    for t, sc in enumerate(rollout_steps(actor, cfg, scenario, n_sims, steps, seed, n_agents, device), start=1):
         for k, film in films.items():
             if k not in scenes:
                 scenes[k] = Scene(sc, title=f"{scenario} · {cfg.model} seed {cfg.seed} · simulation {k}")

@@ -81,7 +81,7 @@ def evaluate_policy(
     """
     sums = None
     bar = Progress(steps, f"{cfg.model} seed {cfg.seed}", f"evaluate {scenario}", enabled=progress)
-    for sc in test_steps(policy, cfg, scenario, n_sims, steps, seed, n_agents, device):
+    for sc in rollout_steps(policy, cfg, scenario, n_sims, steps, seed, n_agents, device):
         bar.update(1)
         sums = sums or _Sums.zeros(n_sims, sc.pos.device)
         sums.add(sc)
@@ -89,7 +89,7 @@ def evaluate_policy(
     return sums.rows(scenario, steps, sc.n_agents)
 
 
-def test_steps(policy, cfg: Config, scenario: str, n_sims: int, steps: int, seed: int,
+def rollout_steps(policy, cfg: Config, scenario: str, n_sims: int, steps: int, seed: int,
                n_agents: int | None = None, device: str | None = None) -> Iterator:
     """The evaluation's rollout of `n_sims` simulations: yields the scenario after each of
     `steps` steps (its tensors hold the state that step ended in, before anyone respawned).
