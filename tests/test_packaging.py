@@ -53,6 +53,9 @@ def test_wheel_ships_the_config_tree(installed):
     in_repo = sorted(str(p.relative_to(REPO / "conf")) for p in (REPO / "conf").rglob("*.yaml"))
     assert shipped == in_repo
     assert "sigmarl/data/paper_table_1.csv" in names
+    # the paper's six policies (`sigmarl evaluate paper:M<k>`) travel with their licence notice
+    policies = {f"sigmarl/data/paper_policies/M{k}_policy.pth" for k in range(6)}
+    assert policies | {"sigmarl/data/paper_policies/LICENSE-SigmaRL.txt"} <= set(names)
 
 
 def test_installed_cli_lists_maps_and_trains(installed):
