@@ -11,6 +11,7 @@ from pathlib import Path
 
 from sigmarl import __version__
 from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
+from sigmarl.evaluation import import_command
 from sigmarl.paths import add_user_conf_dir, config_files
 from sigmarl.resources import use_threads
 from sigmarl.scenarios import scenario, scenario_names
@@ -88,6 +89,8 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
     if args.animate:
         return cmd_animate(args)
+    if import_command.is_imported(args.target):  # a policy of the paper's own code
+        return import_command.run(args)
     target.check_evaluate_overrides(args.overrides)
     for name in args.scenario or ():  # a wrong name is answered before Hydra, in well under a second
         scenario(name)
@@ -298,12 +301,13 @@ def build_parser() -> argparse.ArgumentParser:
     train.set_defaults(func=cmd_train)
     ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios",
                         epilog=_EVAL_KEYS, formatter_class=_KeysHelp)
-    ev.add_argument("target", help="checkpoint file, training run folder, or MLflow training run id")
+    ev.add_argument("target", help="checkpoint file, training run folder, MLflow training run id, or SigmaRL policy")
     ev.add_argument("--scenario", action="append", help=f"one of {', '.join(scenario_names())} (default: the "
                     "study's, the paper's four); repeatable")
     ev.add_argument("--out", help="the CSV for the per-simulation rows (default: evaluation_rows.csv beside the checkpoint)")
     ev.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. eval.n_sims=8 eval.steps=600")
     add_watch_options(ev)
+    import_command.add_options(ev)  # --model, --label: a SigmaRL policy (paper:M<k>, a .pth file)
     ev.set_defaults(func=cmd_evaluate)
     sw = sub.add_parser("sweep", help="train the study's variants x seeds in parallel (Hydra multirun), then evaluate each")
     sw.add_argument("overrides", nargs="*", default=[],
