@@ -17,6 +17,7 @@ import pandas as pd
 from sigmarl.report.draft import BuildOptions, Draft, Section, check_sections
 from sigmarl.report.sections.compare import CURVE_VERDICTS, FINDINGS, REPLICATION, VERDICTS
 from sigmarl.report.sections.exports import FIGURES, LATEX, MARL_EVAL
+from sigmarl.report.sections.paper_policies import PAPER_POLICIES
 from sigmarl.report.sections.seeds import SEEDS, TRAINING
 from sigmarl.report.sections.table import STATISTICS, STUDY, TABLE
 from sigmarl.report.table.aggregate import model_order, validate_rows
@@ -62,6 +63,7 @@ SECTIONS: list[Section] = [
     MARL_EVAL,  # marl_eval*.json
     CURVE_VERDICTS,  # curve_verdicts.*, paper_seeds.csv (needs TRAINING)
     REPLICATION,  # replication.csv, replication.md
+    PAPER_POLICIES,  # paper_policies.csv, paper_policies.md (the paper's own policies, imported rows)
     FIGURES,  # *.png (needs TABLE)
 ]
 check_sections(SECTIONS)

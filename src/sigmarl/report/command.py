@@ -19,6 +19,7 @@ from sigmarl.report.compare.verdicts import design_of
 from sigmarl.report.inputs.columns import check_columns, one_config_per_run, variant_configs
 from sigmarl.report.inputs.coverage import belongs, check, left_out
 from sigmarl.report.inputs.folder import checkpoint_of, read_many, read_results, run_folders
+from sigmarl.report.inputs.imported import imported_folder_beside, read_imported
 from sigmarl.report.table.aggregate import label_order
 from sigmarl.report.table.provenance import run_records
 from sigmarl.run import Run
@@ -122,9 +123,11 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     notes = _coverage(results.rows, cfg, options, folders, ", ".join(map(str, roots)), runs_noted=True)
     tracker = open_tracker(cfg)  # checked before any work
     configs = _folder_configs(results.runs)
+    beside = imported_folder_beside(root) if options.compare_paper else None  # the paper's own policies
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
                     options, extra_notes=[*results.notes, *notes], configs=configs,
-                    provenance=run_records(folders, results.rows))
+                    provenance=run_records(folders, results.rows),
+                    imported=read_imported(beside) if beside is not None else None)
     tracker.log_report(report.composite, report.paths.values(),
                        {"source": ",".join(str(r.resolve()) for r in roots), **what_it_reports(report, cfg, options)},
                        source=",".join(str(r) for r in roots))
@@ -190,7 +193,7 @@ def _folder_configs(runs) -> dict[str, Config]:
 
 def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callable[[], Path],
            options: ReportOptions, extra_notes=(), configs: dict[str, Config] | None = None,
-           provenance: dict | None = None) -> Report:
+           provenance: dict | None = None, imported=None) -> Report:
     """Tables, figures, the scenarios' maps and the baseline's animations, drawn into a staging
     folder and moved into out_dir only when all are complete."""
     models = options.models
@@ -203,7 +206,7 @@ def _build(rows, curves, out_dir: Path, cfg: Config, baseline_checkpoint: Callab
                              order=list(cfg.study.variants) or None, baseline=cfg.study.baseline,
                              design=design_of(cfg.study, models or sorted(set(rows["model"].astype(str)))),
                              configs=configs, defaults=_defaults() if configs is not None else None,
-                             commit=git_commit(), provenance=provenance)
+                             commit=git_commit(), provenance=provenance, imported=imported)
         report = build_report(rows, build, curves)
         known = [s for s in report.table.scenarios if s in scenario_names()]  # the maps the rows ran on
         if options.figures:

@@ -35,7 +35,9 @@ class BuildOptions:
     collision rates; compare_paper: the paper's numbers in parentheses; ci: 95% bootstrap
     intervals in the table; order: the study's labels in declared order; baseline: what every
     other column is compared with (default M0, or the first column); design: the verdicts'
-    study parameters (default: the models against the baseline on CR_total).
+    study parameters (default: the models against the baseline on CR_total); imported: rows of
+    policies trained by the paper's own code (`sigmarl evaluate paper:M<k>`), read only by the
+    `paper_policies` section, never pooled with the rows.
     """
 
     out_dir: Path
@@ -56,6 +58,7 @@ class BuildOptions:
     commit: str | None = None
     # label -> seed -> its run folder's provenance records (None: not recorded); None: not read
     provenance: dict | None = None
+    imported: pd.DataFrame | None = None
 
 
 class UndeclaredFile(RuntimeError):
