@@ -1,0 +1,80 @@
+"""The report's `paper_policies` section: the paper's own policies (imported rows) beside our seeds,
+every number worked by hand; the other files the same with and without them; and the committed
+rows read from results/paper-policies."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from sigmarl.report.build import build_report
+from sigmarl.report.compare.paper_policies import policy_table
+from sigmarl.report.draft import BuildOptions
+from sigmarl.report.inputs.imported import imported_folder_beside, read_imported
+
+ROOT = Path(__file__).resolve().parents[1]
+OBS = {"M0": "E,V,DA,DB,DC", "M5": "E,V,DA,DB"}
+# Table I, CPM, CR_total in % (shared/reference/paper_table_1.csv)
+TABLE_I = {"M0": 0.38, "M5": 0.63}
+
+
+def _rows(model: str, seed: int, middle: float, rules: str | None = None) -> list[dict]:
+    """Three simulations whose trimmed CR_total (best and worst dropped) is `middle` (in %)."""
+    out = []
+    for sim, x in enumerate([0.0, middle, 10.0]):
+        row = {"model": model, "obs": OBS[model.split("-")[0]], "seed": seed, "scenario": "CPM", "simulation": sim,
+               "CR_AA": x / 100, "CR_AL": 0.0, "CR_total": x / 100, "CD": 1.0, "AS": 0.7}
+        if rules is not None:
+            row.update(rules=rules, source="SigmaRL")
+        out.append(row)
+    return out
+
+
+OURS = pd.DataFrame([r for m, means in {"M0": [0.1, 0.2, 0.3], "M5": [0.2, 0.4, 0.6]}.items()
+                     for s, v in enumerate(means) for r in _rows(m, s, v)])
+IMPORTED = pd.DataFrame([*_rows("M0-ITSC24", 0, 0.25, "paper"), *_rows("M0-ITSC24", 0, 0.15, "ours"),
+                         *_rows("M5-ITSC24", 0, 0.7, "paper"), *_rows("M5-ITSC24", 0, 0.5, "ours")])
+
+
+def test_each_number_by_hand():
+    table = policy_table(OURS, IMPORTED, ["M0", "M5"]).set_index("model")
+    m0, m5 = table.loc["M0"], table.loc["M5"]
+    assert (m0["claim"], m5["claim"]) == ("baseline", "difference")
+    assert (m0["policy"], m5["policy"]) == ("M0-ITSC24", "M5-ITSC24")
+    assert m0["ours"] == pytest.approx(0.2) and m5["ours"] == pytest.approx(0.4)
+    assert (m0["policy_paper_rules"], m0["policy_our_rules"]) == pytest.approx((0.25, 0.15))
+    # 0.25 lies above our M0 seeds 0.1 and 0.2; 0.7 above all three M5 seeds; adapted 0.5 above two
+    assert (m0["seeds_lower"], m0["rank"]) == (2, "worse than 2 of 3")
+    assert (m5["seeds_lower"], m5["rank"], m5["seeds_lower_our_rules"]) == (3, "worse than 3 of 3", 2)
+    assert m5["table_i"] == TABLE_I["M5"]
+    assert m5["table_i_delta"] == pytest.approx(TABLE_I["M5"] - TABLE_I["M0"])
+    assert m5["ours_delta"] == pytest.approx(0.4 - 0.2)
+    assert m5["policy_delta_paper_rules"] == pytest.approx(0.7 - 0.25)
+    assert m5["policy_delta_our_rules"] == pytest.approx(0.5 - 0.15)
+    assert pd.isna(m0["table_i_delta"]) and (table["explanation"] == "").all()
+
+
+def test_the_other_files_are_the_same_with_and_without_imported_rows(tmp_path):
+    plain = build_report(OURS, BuildOptions(out_dir=tmp_path / "a", compare_paper=True, figures=False))
+    both = build_report(OURS, BuildOptions(out_dir=tmp_path / "b", compare_paper=True, figures=False,
+                                           imported=IMPORTED))
+    assert set(both.paths) - set(plain.paths) == {"paper_policies", "paper_policies_md"}
+    for key, path in plain.paths.items():
+        assert path.read_bytes() == both.paths[key].read_bytes(), key
+    assert "ITSC24" not in (tmp_path / "b" / "table.csv").read_text()
+    md = (tmp_path / "b" / "paper_policies.md").read_text()
+    assert "| CPM | M5 (M5-ITSC24) | 0.63 | 0.40 (3) | 0.70 | 0.50 | worse than 3 of 3 | +0.25 |" in md
+    # without --compare-paper: no section
+    none = build_report(OURS, BuildOptions(out_dir=tmp_path / "c", figures=False, imported=IMPORTED))
+    assert "paper_policies" not in none.paths
+
+
+def test_the_committed_rows_are_found_beside_paper_budget_and_read():
+    folder = imported_folder_beside(ROOT / "results" / "paper-budget")
+    assert folder == (ROOT / "results" / "paper-policies").resolve()
+    rows = read_imported(folder)
+    assert {"M0-ITSC24", "M5-ITSC24"} <= set(rows["model"]) and set(rows["source"]) == {"SigmaRL"}
+    per = rows.groupby(["model", "rules", "scenario"]).size()
+    assert (per == 32).all()  # the study protocol: 32 simulations per scenario
