@@ -18,13 +18,8 @@ from sigmarl.ablation import MODELS
 from sigmarl.cli import main
 from sigmarl.compose import compose_config
 from sigmarl.env.factory import make_scenario, step_scenario
-from sigmarl.evaluation.imported import (
-    adapt,
-    imported_policy,
-    load_weights,
-    policy_file,
-    speed_entries,
-)
+from sigmarl.evaluation.import_command import policy_file
+from sigmarl.evaluation.imported import adapt, imported_policy, load_weights, speed_entries
 from sigmarl.maps import scenario_map_config
 from sigmarl.rows import check_rows
 

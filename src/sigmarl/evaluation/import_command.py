@@ -23,6 +23,22 @@ def is_imported(target: str) -> bool:
     return target.startswith(PAPER_PREFIX) or target.endswith(".pth")
 
 
+def policy_file(target: str) -> Path:
+    """The policy file `target` names: `paper:M<k>` (shipped with sigmarl) or a path."""
+    if target.startswith(PAPER_PREFIX):
+        model = target[len(PAPER_PREFIX):]
+        if model not in MODELS:
+            raise SigmarlError(f"no shipped policy {target!r}; the paper's are "
+                               f"{', '.join(PAPER_PREFIX + m for m in MODELS)}")
+        from importlib import resources
+
+        return Path(str(resources.files("sigmarl") / "data" / "paper_policies" / f"{model}_policy.pth"))
+    path = Path(target)
+    if not path.is_file():
+        raise SigmarlError(f"policy file not found: {target}")
+    return path
+
+
 def add_options(ev: argparse.ArgumentParser) -> None:
     """`--model` and `--label`, for a policy of the paper's code."""
     ev.add_argument("--model", choices=list(MODELS), help="a SigmaRL policy's model (its observation flags); "
@@ -89,6 +105,7 @@ def run(args: argparse.Namespace) -> None:
     model = model_of(args.target, args.model)
     rules, overrides = rules_of(args.overrides)
     rows_file = rows_file_of(args.out)
+    path = policy_file(args.target)
     for name in args.scenario or ():
         scenario(name)
     cfg = compose_config([f"obs={MODELS[model]}", f"rules={rules}", *overrides])
@@ -100,7 +117,7 @@ def run(args: argparse.Namespace) -> None:
 
     use_threads(cfg.threads)
     label = args.label or model + LABEL_SUFFIX
-    rows, path = evaluate_rows_of(args.target, cfg, model, label, rows_file)
+    rows = evaluate_rows_of(path, args.target, cfg, model, label, rows_file)
     means = scaled(rows).groupby(rows["scenario"], sort=False).mean()
     print(f"{label} (SigmaRL policy {path}, as {model}, rules={rules}), {cfg.eval.n_sims} simulations x "
           f"{cfg.eval.steps} steps, seed {cfg.eval.seed}: {units_text()}")

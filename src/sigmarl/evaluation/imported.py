@@ -20,7 +20,6 @@ evaluation rows under a label of their own, marked as imported with the file's S
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import pandas as pd
@@ -31,7 +30,6 @@ from sigmarl.ablation import MODELS, obs_strategies
 from sigmarl.config import Config
 from sigmarl.env.paper_rules import COMMAND_LIMIT, rules_label
 from sigmarl.errors import SigmarlError
-from sigmarl.evaluation.import_command import PAPER_PREFIX
 from sigmarl.policy_input import CORNERS, neighbours, observation_size
 from sigmarl.scenarios import scenario as scenario_of
 
@@ -43,20 +41,6 @@ HIDDEN = 256
 SPEED_FACTOR = 0.8  # our speeds are / 0.8 m/s, the paper's / 1.0
 NOISE_MEAN = 0.01  # the paper's noise 0.02 U[0, 1) has mean +0.01; ours has none
 ADAPTATION = "speeds x0.8, own speed unsigned, +0.01 every entry; box (0.8 m/s, 35 deg)"
-
-
-def policy_file(target: str) -> Path:
-    """The policy file `target` names: `paper:M<k>` (shipped with sigmarl) or a path."""
-    if target.startswith(PAPER_PREFIX):
-        model = target[len(PAPER_PREFIX):]
-        if model not in MODELS:
-            raise SigmarlError(f"no shipped policy {target!r}; the paper's are "
-                               f"{', '.join(PAPER_PREFIX + m for m in MODELS)}")
-        return Path(str(resources.files("sigmarl") / "data" / "paper_policies" / f"{model}_policy.pth"))
-    path = Path(target)
-    if not path.is_file():
-        raise SigmarlError(f"policy file not found: {target}")
-    return path
 
 
 def load_weights(path: Path) -> list[tuple[torch.Tensor, torch.Tensor]]:
@@ -200,23 +184,22 @@ def evaluate_imported(path: Path, cfg: Config, model: str, label: str, scenarios
     return rows
 
 
-def evaluate_rows_of(target: str, cfg: Config, model: str, label: str, rows_file: Path) -> tuple[pd.DataFrame, Path]:
-    """The rows of the SigmaRL policy `target` names, and its file: those saved in `rows_file` for
+def evaluate_rows_of(path: Path, target: str, cfg: Config, model: str, label: str, rows_file: Path) -> pd.DataFrame:
+    """The rows of the SigmaRL policy in `path` (named `target`): those saved in `rows_file` for
     the same file, model, label, rules and protocol, or evaluated now and saved there (rows
     first, then their note, `evaluation.json` or `<stem>.json`, as `sigmarl evaluate` keeps them)."""
     from sigmarl.eval_key import eval_key
     from sigmarl.evaluation.protocol import _save_rows, _saved_rows, _sha256
     from sigmarl.paths import ensure_writable
 
-    path = policy_file(target)
     load_weights(path)  # a file that is no such policy is refused before rows are looked up
     identity = {"eval_key": eval_key(cfg.eval), "policy_sha256": _sha256(path), "source": SOURCE,
                 "policy": target, "as_model": model, "label": label, "rules_label": rules_label(cfg.rules),
                 "adaptation": "none" if rules_label(cfg.rules) == "paper" else ADAPTATION}
     rows = _saved_rows(rows_file, identity)
     if rows is not None:
-        return rows, path
+        return rows
     ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use another --out")
     rows = evaluate_imported(path, cfg, model, label, list(cfg.eval.scenarios))
     _save_rows(rows, rows_file, identity)
-    return rows, path
+    return rows
