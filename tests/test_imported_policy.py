@@ -104,6 +104,11 @@ def test_a_wrong_model_is_refused_naming_both_sizes(tmp_path, capsys):
     assert "the paper's M5, not M2" in line
 
 
+def test_model_and_label_are_refused_for_our_own_checkpoints(tmp_path, capsys):
+    line = one_line_exit_2(["evaluate", str(tmp_path / "best.pt"), "--model", "M5"], capsys)
+    assert "--model names a SigmaRL policy's model" in line
+
+
 def test_rows_never_go_into_a_run_folder_nor_without_out(tmp_path, capsys):
     run = tmp_path / "M5" / "seed0"
     run.mkdir(parents=True)

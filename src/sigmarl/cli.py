@@ -89,7 +89,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
     if args.animate:
         return cmd_animate(args)
-    if import_command.is_imported(args.target):  # a policy of the paper's own code
+    if import_command.takes(args):  # a policy of the paper's own code
         return import_command.run(args)
     target.check_evaluate_overrides(args.overrides)
     for name in args.scenario or ():  # a wrong name is answered before Hydra, in well under a second

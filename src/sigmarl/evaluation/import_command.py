@@ -23,6 +23,18 @@ def is_imported(target: str) -> bool:
     return target.startswith(PAPER_PREFIX) or target.endswith(".pth")
 
 
+def takes(args: argparse.Namespace) -> bool:
+    """Whether `sigmarl evaluate`'s target is a SigmaRL policy; --model or --label for any other
+    target is refused (a checkpoint keeps its own model and label)."""
+    if is_imported(args.target):
+        return True
+    given = [o for o, v in (("--model", args.model), ("--label", args.label)) if v is not None]
+    if given:
+        raise SigmarlError(f"{' and '.join(given)} {'name' if len(given) > 1 else 'names'} a SigmaRL policy's model "
+                           f"or column (paper:M<k> or a .pth file); {args.target} keeps its training config's")
+    return False
+
+
 def policy_file(target: str) -> Path:
     """The policy file `target` names: `paper:M<k>` (shipped with sigmarl) or a path."""
     if target.startswith(PAPER_PREFIX):
