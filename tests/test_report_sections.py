@@ -11,6 +11,7 @@ import pytest
 from sigmarl.report.build import SECTIONS, build_report
 from sigmarl.report.draft import BuildOptions, Draft, Section, UndeclaredFile, check_sections
 from sigmarl.report.inputs.folder import read_results
+from sigmarl.report.inputs.imported import read_imported
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -79,8 +80,9 @@ def test_every_file_a_whole_report_writes_is_declared_by_its_section(tmp_path):
     results = read_results(ROOT / "results" / "paper-budget")
     keep = results.rows["model"].isin(["M0", "M4"]) & results.rows["seed"].isin([0, 1, 2])
     curves = results.curves[results.curves["model"].isin(["M0", "M4"]) & results.curves["seed"].isin([0, 1, 2])]
+    imported = read_imported(ROOT / "results" / "paper-policies")  # the paper's own policies' section
     report = build_report(results.rows[keep], BuildOptions(out_dir=tmp_path, compare_paper=True, latex=True,
-                                                           ci=True), curves)
+                                                           ci=True, imported=imported), curves)
     written = sorted(p.name for p in tmp_path.iterdir())
     owner = {name: next((s.name for s in SECTIONS if s.declares(name)), None) for name in written}
     assert None not in owner.values(), [n for n, s in owner.items() if s is None]
