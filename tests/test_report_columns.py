@@ -32,7 +32,7 @@ def _store(tmp_path: Path, m0_fingerprints: list[str], m4: bool = True) -> tuple
     for model, fps in ((("M4", [m4]),) if m4 else ()) + (("M0", m0_fingerprints),):
         rows = pd.read_csv(FIXTURE / model / "seed0" / "evaluation_rows.csv")
         for fp in fps:
-            log_evaluation(client, exp, rows, {"model": model, "seed": "0", "eval_key": "k", "fingerprint": fp,
+            log_evaluation(client, exp, rows, {"model": model, "seed": "0", "fingerprint": fp,
                                                "checkpoint": str(quick / "final.pt")}, {})
     return uri, quick
 

@@ -107,7 +107,7 @@ def test_the_mlflow_report_reads_the_failures_from_the_run_folders(tmp_path, mon
     exp = client.create_experiment("cover")
     for model, seed in (("M0", 0), ("M4", 0)):
         rows = pd.read_csv(FIXTURE / model / f"seed{seed}" / "evaluation_rows.csv")
-        log_evaluation(client, exp, rows, {"model": model, "seed": str(seed), "eval_key": "k"}, {})
+        log_evaluation(client, exp, rows, {"model": model, "seed": str(seed)}, {})
     runs = tmp_path / "runs"
     (runs / "K4" / "seed0").mkdir(parents=True)
     (runs / "K4" / "seed0" / "failed.txt").write_text(ERROR)

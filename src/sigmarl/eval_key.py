@@ -1,6 +1,6 @@
 """What makes two evaluations interchangeable: the protocol (scenarios with their maps and
-agents, simulations, steps, seed, checkpoint), the revision of the environment's rules that
-measured them, and the metric columns they hold. Light to import: a sweep's plan checks it."""
+agents, simulations, steps, seed, checkpoint, and the revision of the environment's rules that
+measured them), and the metric columns they hold. Light to import: a sweep's plan checks it."""
 
 from __future__ import annotations
 
@@ -22,15 +22,32 @@ RULES_REVISION = 2
 REVISION_METRICS = ("CR_AA", "CR_AL", "CR_total", "CD", "AS")
 
 
-def eval_key(eval_cfg: EvalConfig) -> str:
-    """A short hash of the evaluation protocol: runs with equal keys are interchangeable."""
-    protocol = as_dict(eval_cfg)
+def protocol(eval_cfg: EvalConfig) -> dict:
+    """The evaluation protocol, defined once: the scenarios (with their maps and agents), the
+    simulations, steps, seed and checkpoint, and the rules revision that measures them. Not the
+    metric columns: a metric added later leaves every stored row file in its protocol."""
+    described = as_dict(eval_cfg)
     # A scenario's name does not say which map it ran on (Table I's names moved from the
-    # procedural maps to the paper's own): the key holds each scenario's map and agents.
+    # procedural maps to the paper's own): the protocol holds each scenario's map and agents.
     known = scenario_names()
-    protocol["maps"] = {s: [scenario(s).map, scenario(s).n_agents] for s in protocol["scenarios"] if s in known}
-    protocol["rules"] = RULES_REVISION
+    described["maps"] = {s: [scenario(s).map, scenario(s).n_agents] for s in described["scenarios"] if s in known}
+    described["rules"] = RULES_REVISION
+    return described
+
+
+def protocol_key(eval_cfg: EvalConfig) -> str:
+    """A short hash of the protocol (`protocol`): what tells a study's evaluation from a one-off."""
+    return _hash(protocol(eval_cfg))
+
+
+def eval_key(eval_cfg: EvalConfig) -> str:
+    """A short hash of the protocol and the metric columns: runs with equal keys are
+    interchangeable. Equal to `protocol_key` while the columns are the revision's own five."""
+    described = protocol(eval_cfg)
     if tuple(METRIC_COLUMNS) != REVISION_METRICS:
-        protocol["metrics"] = list(METRIC_COLUMNS)
-    blob = json.dumps(protocol, sort_keys=True)
-    return hashlib.sha1(blob.encode()).hexdigest()[:12]
+        described["metrics"] = list(METRIC_COLUMNS)
+    return _hash(described)
+
+
+def _hash(described: dict) -> str:
+    return hashlib.sha1(json.dumps(described, sort_keys=True).encode()).hexdigest()[:12]

@@ -102,3 +102,11 @@ def rows_measured(rows_file: Path, meta_file: Path, key: str) -> bool:
     except (SigmarlError, ValueError):  # pandas' parser errors are ValueErrors
         return False
     return True
+
+
+def note_protocol(meta: dict) -> str | None:
+    """The protocol key (`eval_key.protocol_key`) of the rows a note describes. Notes from before
+    the field name only their evaluation key, which equals the protocol's while the metric
+    columns are the rules revision's own five (every such note's)."""
+    found = meta.get("protocol_key", meta.get("eval_key"))
+    return found if isinstance(found, str) else None

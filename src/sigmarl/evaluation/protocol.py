@@ -17,13 +17,13 @@ from sigmarl import crash
 from sigmarl.ablation import obs_strategies
 from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.env.paper_rules import rules_label
-from sigmarl.eval_key import RULES_REVISION, eval_key
+from sigmarl.eval_key import RULES_REVISION, eval_key, protocol, protocol_key
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noqa: F401 (their old home)
 from sigmarl.identity import fingerprint
 from sigmarl.paths import ensure_writable
 from sigmarl.policy_input import check_evaluable
-from sigmarl.rows import rows_measured
+from sigmarl.rows import note_protocol, rows_measured
 from sigmarl.run import ROWS_FILE, ROWS_META, Run, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker, open_tracker
@@ -69,13 +69,33 @@ def rows_rules(rows: pd.DataFrame) -> pd.Series:
 
 
 def rows_file_for(checkpoint: Path, cfg: Config) -> Path:
-    """Where `sigmarl evaluate` keeps the rows: evaluation_rows.csv beside the checkpoint,
-    unless that holds another protocol's rows (then evaluation_rows-<protocol key>.csv)."""
-    key = eval_key(cfg.eval)
+    """Where `sigmarl evaluate` keeps the rows: evaluation_rows.csv beside the checkpoint when
+    they are its study's protocol (`eval_key.protocol`), else evaluation_rows-<protocol key>.csv
+    beside it. A one-off evaluation (another scenario set, fewer simulations, other steps) never
+    replaces the study's rows, which its report and sweep read."""
+    key = protocol_key(cfg.eval)
     default = Run(checkpoint.parent).rows_file
-    meta = _read_meta(default)
-    return default if meta is None or meta.get("eval_key") == key else \
-        checkpoint.parent / f"evaluation_rows-{key}.csv"
+    study = study_protocol(checkpoint.parent)
+    return default if study in (None, key) else checkpoint.parent / f"evaluation_rows-{key}.csv"
+
+
+def study_protocol(run_dir: Path) -> str | None:
+    """The protocol key of the run folder's study: that of its evaluation_rows.csv where a note
+    says it, else that of the evaluation its config.yaml was trained for; None where neither is
+    known (a checkpoint outside a run folder)."""
+    meta = _read_meta(Run(run_dir).rows_file)
+    if meta is not None and isinstance(found := note_protocol(meta), str):
+        return found
+    config = Run(run_dir).config_file
+    if not config.is_file():
+        return None
+    from sigmarl.errors import SigmarlError
+    from sigmarl.readers import read_run_config
+
+    try:
+        return protocol_key(read_run_config(config).eval)
+    except SigmarlError:
+        return None
 
 
 def _meta_path(rows_file: Path) -> Path:
@@ -115,7 +135,7 @@ def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | Non
         return None
 
 
-def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) -> None:
+def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str], eval_cfg: EvalConfig) -> None:
     """Rows first, then the note saying what they are: a kill in between leaves no note."""
     _meta_path(rows_file).unlink(missing_ok=True)
     text = rows.to_csv(index=False)
@@ -124,6 +144,8 @@ def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str]) ->
     # `rules`: which environment rules measured them (`report --from` leaves out older ones)
     meta = {**identity, "rows_sha256": hashlib.sha256(text.encode("utf-8")).hexdigest(), "rules": RULES_REVISION,
             "dtypes": {c: str(t) for c, t in rows.dtypes.items()}}
+    # the protocol, its key and in words: what tells a one-off evaluation from the study's
+    meta.update(protocol_key=protocol_key(eval_cfg), protocol=protocol(eval_cfg))
     # `rules_label`: the policy's rules switches (`ours`, `paper` or those on; old rows: ours)
     meta["rules_label"] = str(rows["rules"].iloc[0]) if "rules" in rows.columns and len(rows) else "ours"
     write_atomic(_meta_path(rows_file), json.dumps(meta, indent=1) + "\n")
@@ -143,7 +165,7 @@ def evaluate_rows(path: Path, cfg: Config, rows_file: Path | None, scenarios=Non
         ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use --out <file>")
     rows, state = evaluate_checkpoint(path, cfg.eval, scenarios, device=cfg.device, progress=progress)
     if rows_file is not None:
-        _save_rows(rows, rows_file, identity)
+        _save_rows(rows, rows_file, identity, cfg.eval)
     return rows, state
 
 
@@ -175,6 +197,7 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
         "train_run_id": train_run_id or state.get("mlflow_run_id") or "",
         "checkpoint": str(path),
         "eval_key": eval_key(cfg.eval),
+        "protocol_key": protocol_key(cfg.eval),  # a report reads its study's protocol only
     }
     params = {f"eval.{k}": str(v) for k, v in as_dict(cfg.eval).items()}
     params["checkpoint_iteration"] = str(state.get("iteration"))

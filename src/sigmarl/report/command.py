@@ -13,6 +13,7 @@ from pathlib import Path
 
 from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
+from sigmarl.eval_key import protocol_key
 from sigmarl.readers import read_run_config
 from sigmarl.report.build import BuildOptions, Report, build_report
 from sigmarl.report.compare.verdicts import design_of
@@ -57,8 +58,9 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     tracker = open_tracker(cfg)  # checked before any work
     client = connect(cfg, write=False)  # the rows are read from MLflow whichever tracker logs
     folders, where = _study_folders(cfg)
+    lacking: list[str] = []  # seeds evaluated under other protocols only (one-off evaluations)
     try:
-        rows = records.load_evaluation_rows(client, experiment)
+        rows = records.load_evaluation_rows(client, experiment, _study_protocol(cfg, options), lacking)
     except SigmarlError as e:  # no rows at all: say what became of the study's runs
         missing = left_out(list(cfg.study.variants), set(), folders, where, declared=False)
         raise SigmarlError(f"{e}; " + "; ".join(map(str, missing)) if missing else str(e)) from e
@@ -67,7 +69,7 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     expected = variant_configs(options.overrides, dict(cfg.study.variants), rows["model"].astype(str))
     rows, wrong = check_columns(rows, expected, options.partial, lambda rid: records.evaluated_config(client, rid))
     rows = one_config_per_run(rows, list(expected))
-    notes = [*wrong, *_coverage(rows, cfg, options, folders, where)]
+    notes = [*wrong, *lacking, *_coverage(rows, cfg, options, folders, where)]
     curves = records.load_training_curves(client, experiment) if options.figures else None
     out_dir = out_dir or report_folder(experiment, cfg, options)
     configs = _column_configs(rows, lambda rid: records.evaluated_config(client, rid), expected)
@@ -79,6 +81,18 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
         **what_it_reports(report, cfg, options),
     })
     return report
+
+
+def _study_protocol(cfg: Config, options: ReportOptions) -> str:
+    """The protocol (`eval_key.protocol_key`) of the study's evaluations, the only rows a report
+    reads: the config's, composed without the scenarios a report of some of them chose."""
+    if options.scenarios is None:
+        return protocol_key(cfg.eval)
+    from sigmarl.compose import compose_config
+
+    chosen = ("eval.scenarios", "study.scenarios")
+    return protocol_key(compose_config([o for o in options.overrides
+                                        if o.split("=", 1)[0].lstrip("+") not in chosen]).eval)
 
 
 def report_folder(name: str, cfg: Config, options: ReportOptions) -> Path:

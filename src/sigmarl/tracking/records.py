@@ -120,8 +120,11 @@ def _ended(client, rid: str) -> Iterator[None]:
         raise
 
 
-def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
-    """All per-simulation rows of the experiment's finished evaluation runs."""
+def load_evaluation_rows(client, experiment: str, protocol: str | None = None,
+                         notes: list[str] | None = None) -> pd.DataFrame:
+    """All per-simulation rows of the experiment's finished evaluation runs; with `protocol`,
+    those of that protocol only (`eval_key.protocol_key`: a one-off evaluation of the same run
+    never replaces the study's), the seeds evaluated under others alone named in `notes`."""
     # lazy: MLflow (~1 s) and pandas only where a store or rows are used
     import pandas as pd
 
@@ -136,11 +139,21 @@ def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
     # Keep the newest evaluation of each (model, seed, training config) so a re-evaluation
     # replaces the old one, and a run of another config under the same label does not hide the
     # declared one's (the report chooses by fingerprint: sigmarl.report.inputs.columns)
-    latest = {}
+    latest, others = {}, {}
     for run in runs:
         tags = run.data.tags
-        latest.pop(key := (tags.get("model"), tags.get("seed"), tags.get("obs"), tags.get("fingerprint", "")), None)
+        key = (tags.get("model"), tags.get("seed"), tags.get("obs"), tags.get("fingerprint", ""))
+        theirs = tags.get("protocol_key", tags.get("eval_key"))  # runs from before the tag: the same
+        if protocol is not None and theirs is not None and theirs != protocol:
+            others[key] = theirs
+            continue
+        latest.pop(key, None)
         latest[key] = run  # re-inserted: the dict's order is the evaluations' order
+    lacking = [f"{key[0]} seed {key[1]} evaluated under another protocol ({theirs}) only, not the study's "
+               f"({protocol}): left out; `sigmarl sweep` evaluates it under the study's"
+               for key, theirs in others.items() if key not in latest]
+    if notes is not None:
+        notes.extend(lacking)
     with tempfile.TemporaryDirectory() as tmp:
         for run in latest.values():
             path = client.download_artifacts(run.info.run_id, ROWS_ARTIFACT, tmp)
@@ -151,7 +164,7 @@ def load_evaluation_rows(client, experiment: str) -> pd.DataFrame:
     if not frames:
         raise SigmarlError(
             f"no finished evaluation runs in experiment {experiment!r}: run `sigmarl sweep` "
-            "or `sigmarl evaluate <run>` first"
+            "or `sigmarl evaluate <run>` first" + "".join(f"; {line}" for line in lacking)
         )
     return pd.concat(frames, ignore_index=True)
 

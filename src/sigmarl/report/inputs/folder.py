@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
 from sigmarl.readers import read_training_curve
 from sigmarl.report.inputs.coverage import run_state
-from sigmarl.rows import check_rows
+from sigmarl.rows import check_rows, note_protocol
 from sigmarl.run import COMPLETE_REWARD_COLUMN, REWARD_COLUMN, ROWS_FILE, Run
 
 _SEED_DIR = re.compile(r"seed(-?\d+)")
@@ -145,6 +146,7 @@ def read_results(root: Path) -> FolderResults:
     environment rules (`eval_key.RULES_REVISION`) are left out, with a note."""
     runs = run_folders(root)
     frames, curves, notes = [], [], []
+    study = _study_protocol(runs)
     seen: dict[tuple[str, int], Path] = {}
     sims: dict[str | None, tuple[int, Path]] = {}  # per evaluation protocol: simulations per scenario
     for run in runs:
@@ -155,6 +157,10 @@ def read_results(root: Path) -> FolderResults:
         if rules is not None and rules != RULES_REVISION:
             notes.append(f"{run.path}: evaluated under the environment's rules revision {rules}, not "
                          f"{RULES_REVISION}: left out; `sigmarl sweep runs_root=...` re-evaluates it")
+            continue
+        if study is not None and _eval_key_of(run) not in (None, study):
+            notes.append(f"{run.path}: evaluated under another protocol ({_eval_key_of(run)}) than the folder's "
+                         f"study ({study}): left out; `sigmarl sweep runs_root=...` evaluates it under the study's")
             continue
         rows = rows_of(run)
         _same_protocol_count(rows, run, sims)
@@ -191,11 +197,19 @@ def _same_protocol_count(rows: pd.DataFrame, run: RunFolder, sims: dict) -> None
 
 
 def _eval_key_of(run: RunFolder) -> str | None:
+    """The protocol (`eval_key.protocol_key`) its rows' note names; None where none says."""
     try:
         meta = json.loads(Run(run.path).rows_meta_file.read_text())
     except (OSError, ValueError):
         return None
-    return str(meta.get("eval_key")) if isinstance(meta, dict) else None
+    return note_protocol(meta) if isinstance(meta, dict) else None
+
+
+def _study_protocol(runs: list[RunFolder]) -> str | None:
+    """The protocol most of the folder's rows were evaluated under: its study's (a sweep writes
+    every seed's rows under one; an evaluation under another is written beside them)."""
+    keys = Counter(k for run in runs if Run(run.path).rows_file.is_file() and (k := _eval_key_of(run)))
+    return keys.most_common(1)[0][0] if keys else None
 
 
 def read_many(roots: list[Path]) -> FolderResults:
