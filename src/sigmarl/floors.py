@@ -35,9 +35,9 @@ FLOORS: tuple[Floor, ...] = (
            "sigmarl.suggest")),
     Floor("readers and identity", "the checked readers of damageable files, evaluation rows' checks, "
           "where the config tree is, the scenarios, a run's identity, what makes two evaluations "
-          "interchangeable, what a policy reads",
+          "interchangeable, what a policy reads, which folders are sigmarl's to write",
           ("sigmarl.readers", "sigmarl.rows", "sigmarl.paths", "sigmarl.scenarios", "sigmarl.identity",
-           "sigmarl.eval_key", "sigmarl.policy_input")),
+           "sigmarl.eval_key", "sigmarl.policy_input", "sigmarl.run_owner")),
     Floor("tracking", "where runs are recorded: the tracker seam and the MLflow tracker",
           ("sigmarl.tracking",)),
     Floor("maps", "road maps: the model, routes, loaders and builders, a map by name",

@@ -25,6 +25,7 @@ from sigmarl.progress import emit
 from sigmarl.readers import read_json
 from sigmarl.resources import end_with_the_sweep, enter_sweep_folder, job_threads, use_threads
 from sigmarl.run import Run, write_atomic
+from sigmarl.run_owner import NotOurs
 from sigmarl.sweep.plan import earlier_config
 from sigmarl.tracking import open_tracker
 from sigmarl.training.loop import train_block
@@ -125,8 +126,9 @@ def _failed(e: BaseException, run: Run) -> str:
         raise e
     message = str(e) if isinstance(e, SigmarlError) else traceback.format_exc()
     try:
-        run_dir.mkdir(parents=True, exist_ok=True)
-        run.mark_failed(message)
+        if not isinstance(e, NotOurs):  # a user's folder: not even a failure's mark goes into it
+            run_dir.mkdir(parents=True, exist_ok=True)
+            run.mark_failed(message)
     except OSError:  # an unwritable run folder is itself the error reported
         pass
     emit(f"sigmarl sweep: job {run_dir} failed: {str(e)[:500]}", logging.ERROR)

@@ -30,6 +30,7 @@ from sigmarl.maps import load_map
 from sigmarl.paths import ensure_writable
 from sigmarl.progress import Progress
 from sigmarl.run import Run
+from sigmarl.run_owner import check_ours
 from sigmarl.tracking import Tracker, flatten, open_tracker, provenance
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training.learner import Learner, iteration_seed
@@ -157,6 +158,8 @@ def train_block(cfgs: Sequence[Config], trackers: Sequence[Tracker] | None = Non
     _check_block(cfgs)
     # agents the training map cannot hold are refused before a run folder exists
     check_room(load_map(cfgs[0].map), cfgs[0].env.n_agents)
+    for c in cfgs:  # a folder that is not a run's is refused before its lock or a file is made
+        check_ours(Path(c.run_dir))
     for c in cfgs:
         ensure_writable(Path(c.run_dir).parent, "choose another run_dir=...")
     with contextlib.ExitStack() as held:
