@@ -127,7 +127,7 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     """
     check_baseline(cfg, options)
     roots = [Path(r) for r in (root if isinstance(root, list) else [root])]
-    results = read_results(roots[0]) if len(roots) == 1 else read_many(roots)
+    results = read_results(roots[0], options.partial) if len(roots) == 1 else read_many(roots, options.partial)
     results.rows = only_scenarios(results.rows, options.scenarios, ", ".join(map(str, roots)))
     root = roots[0]
     out_dir = out_dir or report_folder(roots[0].resolve().name if len(roots) == 1 else cfg.study.name, cfg, options)

@@ -14,6 +14,7 @@ notes; without metrics.csv it just has no training curve.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from collections import Counter
@@ -141,27 +142,22 @@ def _rules_of(run: RunFolder) -> int | None:
     return rules if isinstance(rules, int) and not isinstance(rules, bool) else None
 
 
-def read_results(root: Path) -> FolderResults:
+def read_results(root: Path, partial: bool = False) -> FolderResults:
     """All evaluation rows and training curves of a results folder. Rows measured under older
-    environment rules (`eval_key.RULES_REVISION`) are left out, with a note."""
+    environment rules (`eval_key.RULES_REVISION`) or another protocol than the folder's study
+    are left out, with a note. A rows file whose SHA-256 differs from its note's is refused in
+    one line naming it (left out, with a note, when `partial`)."""
     runs = run_folders(root)
     frames, curves, notes = [], [], []
     study = _study_protocol(runs)
     seen: dict[tuple[str, int], Path] = {}
     sims: dict[str | None, tuple[int, Path]] = {}  # per evaluation protocol: simulations per scenario
+    unhashed = 0  # rows files whose note predates their SHA-256: checked by their contents only
     for run in runs:
-        if not Run(run.path).rows_file.is_file():
-            notes.append(f"{run.path}: {run_state(run.path)[0]}: left out")
+        if (why := _left_out(run, study, partial)) is not None:
+            notes.append(f"{run.path}: {why}")
             continue
-        rules = _rules_of(run)
-        if rules is not None and rules != RULES_REVISION:
-            notes.append(f"{run.path}: evaluated under the environment's rules revision {rules}, not "
-                         f"{RULES_REVISION}: left out; `sigmarl sweep runs_root=...` re-evaluates it")
-            continue
-        if study is not None and _eval_key_of(run) not in (None, study):
-            notes.append(f"{run.path}: evaluated under another protocol ({_eval_key_of(run)}) than the folder's "
-                         f"study ({study}): left out; `sigmarl sweep runs_root=...` evaluates it under the study's")
-            continue
+        unhashed += Run(run.path).rows_meta_file.is_file() and _recorded_sha256(run) is None
         rows = rows_of(run)
         _same_protocol_count(rows, run, sims)
         model = str(rows["model"].iloc[0])
@@ -175,6 +171,9 @@ def read_results(root: Path) -> FolderResults:
             curves.append(curve)
         if note:
             notes.append(note)
+    if unhashed:
+        notes.append(f"{unhashed} rows file(s) under {root} have no SHA-256 in their note (written before it was "
+                     "recorded): taken after checking their contents")
     if not frames:
         raise SigmarlError(f"no {ROWS_FILE} under {root}: nothing evaluated to report on"
                            + "".join(f"; {n}" for n in notes))
@@ -182,6 +181,37 @@ def read_results(root: Path) -> FolderResults:
     curve_frame = (pd.concat(curves, ignore_index=True) if curves
                    else pd.DataFrame(columns=["model", "seed", "iteration", "reward", "seconds"]))
     return FolderResults(rows, curve_frame, runs, notes)
+
+
+def _left_out(run: RunFolder, study: str | None, partial: bool) -> str | None:
+    """Why a run's rows are left out of the report (in words), or None to read them."""
+    if not Run(run.path).rows_file.is_file():
+        return f"{run_state(run.path)[0]}: left out"
+    rules = _rules_of(run)
+    if rules is not None and rules != RULES_REVISION:
+        return (f"evaluated under the environment's rules revision {rules}, not {RULES_REVISION}: left out; "
+                "`sigmarl sweep runs_root=...` re-evaluates it")
+    if study is not None and (theirs := _eval_key_of(run)) not in (None, study):
+        return (f"evaluated under another protocol ({theirs}) than the folder's study ({study}): left out; "
+                "`sigmarl sweep runs_root=...` evaluates it under the study's")
+    recorded, path = _recorded_sha256(run), Run(run.path).rows_file
+    if recorded is not None and hashlib.sha256(path.read_bytes()).hexdigest() != recorded:
+        what = f"{path} differs from the SHA-256 its {Run(run.path).rows_meta_file.name} records (edited or damaged)"
+        if not partial:
+            raise SigmarlError(f"{what}; restore it, or evaluate the run again (delete it and sweep again), "
+                               "or give --partial to leave it out")
+        return f"{what[len(str(run.path)) + 1:]}: left out"
+    return None
+
+
+def _recorded_sha256(run: RunFolder) -> str | None:
+    """The rows' SHA-256 their note records (`rows_sha256`), None where it records none."""
+    try:
+        meta = json.loads(Run(run.path).rows_meta_file.read_text())
+    except (OSError, ValueError):
+        return None
+    found = meta.get("rows_sha256") if isinstance(meta, dict) else None
+    return found if isinstance(found, str) else None
 
 
 def _same_protocol_count(rows: pd.DataFrame, run: RunFolder, sims: dict) -> None:
@@ -212,9 +242,9 @@ def _study_protocol(runs: list[RunFolder]) -> str | None:
     return keys.most_common(1)[0][0] if keys else None
 
 
-def read_many(roots: list[Path]) -> FolderResults:
+def read_many(roots: list[Path], partial: bool = False) -> FolderResults:
     """`read_results` of several folders as one; a label and seed found twice is refused."""
-    parts = [read_results(r) for r in roots]
+    parts = [read_results(r, partial) for r in roots]
     rows = pd.concat([p.rows for p in parts], ignore_index=True)
     seen = rows.drop_duplicates(["model", "seed", "scenario", "simulation"])
     if len(seen) < len(rows):
