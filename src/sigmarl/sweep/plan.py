@@ -189,7 +189,31 @@ def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: l
                                f"({differences(earlier, cfg)}); choose another runs_root=... or label")
         jobs.append(Job(f"{label}/seed{seed}", label, seed, [*overrides, f"seed={seed}"], variant, cfg.run_dir,
                         cfg.fingerprint, eval_key(cfg.eval)))
+    if configs:
+        _check_siblings(configs[0], seeds)
     return jobs
+
+
+def _check_siblings(cfg: Config, seeds: list[int]) -> None:
+    """A seed joins its label's run folders only if their seeds were trained with its settings:
+    a seed of another budget beside a study's seeds is refused before anything trains, naming
+    the settings that differ (the report would refuse the mix only afterwards)."""
+    label_dir = Path(cfg.run_dir).parent
+    if Path(cfg.run_dir).name != f"seed{cfg.seed}" or not label_dir.is_dir():
+        return  # a run_dir of the user's own layout: no study's seeds beside it
+    ours = {f"seed{s}" for s in seeds}
+    for sibling in sorted(label_dir.glob("seed*")):
+        if sibling.name in ours or not re.fullmatch(r"seed\d+", sibling.name):
+            continue
+        try:
+            earlier = earlier_config(sibling)
+        except SigmarlError:
+            continue  # a damaged config.yaml is its own run's to refuse, when it is swept
+        if earlier is not None and earlier.fingerprint != cfg.fingerprint:
+            raise SigmarlError(f"{label_dir} holds {sibling.name}, trained with other settings than seed(s) "
+                               f"{', '.join(map(str, seeds))} ({differences(earlier, cfg)}); a study's run folders "
+                               "hold one training config: drop the overrides that differ, or choose another "
+                               "runs_root=... or label")
 
 
 def _units(jobs: list[Job], size: int) -> list[Unit]:
