@@ -133,7 +133,9 @@ class SeedRun:
         state, iterations = self.state, self.state["iteration"]
         if not self.run.final_file.exists():  # the last checkpoint holds the final weights
             ckpt.save_atomic(ckpt.policy_only(state), self.run.final_file)
-        run_id = state.get("mlflow_run_id")
+        # the folder's record of its run first: a store that lacked the checkpoint's run got a
+        # new one, whose id only the folder keeps (the checkpoint is not rewritten for it)
+        run_id = _recorded_run_id(self.run) or state.get("mlflow_run_id")
         self.record = tracker.training_run(run_id, reopen=False)
         if self.record.run_id != run_id:  # a store that had no record of it
             write_atomic(self.run.run_id_file, f"{self.record.run_id}\n")
@@ -142,6 +144,15 @@ class SeedRun:
             self.complete_record(iterations)
         print(f"{self.dir}: training already finished ({iterations} iterations)")
         return self.record.run_id
+
+
+def _recorded_run_id(run: Run) -> str | None:
+    """The run id in the folder's `mlflow_run_id`, None where it has none readable."""
+    try:
+        text = run.run_id_file.read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+    return text if text and "\n" not in text else None
 
 
 def finish_records(runs: list[SeedRun], error: BaseException) -> None:
