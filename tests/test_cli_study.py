@@ -43,6 +43,9 @@ def test_the_sweeps_hint_keeps_what_finds_its_runs(tmp_path, monkeypatch):
     from sigmarl.sweep.launch import report_hint
 
     monkeypatch.delenv("SIGMARL_CONFIG_PATH", raising=False)
+    # away from the clone: runs/ left there by the README's quick start (study=quick, another
+    # training config than env.n_agents=5's) is no part of what this test plans (N3)
+    monkeypatch.chdir(tmp_path)
     # ppo=smoke moves the runs into experiment sigmarl-smoke, and is the training config every
     # column composes to: the report needs it too (the evaluation's own settings it does not)
     plan = plan_sweep(["ppo=smoke", "models=[M0]", "eval.n_sims=2", "tracking.enabled=false"])
