@@ -67,3 +67,4 @@ def test_notes_older_than_the_checksum_are_taken_after_the_checks_said_once(tmp_
     assert len(results.rows[["model", "seed"]].drop_duplicates()) == len(rows)
     assert results.notes == [f"2 rows file(s) under {root} have no SHA-256 in their note (written before it was "
                              "recorded): taken after checking their contents"]
+

@@ -4,7 +4,9 @@ tables, figures, and a report run in the tracker (none with tracking.enabled=fal
 from __future__ import annotations
 
 import os
+import re
 import shutil
+import socket
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -295,11 +297,32 @@ def staged(out_dir: Path) -> Iterator[Path]:
     moved in only when all are complete, so a report killed half-way (Ctrl-C, SIGTERM) leaves
     the previous files, never a half-written one."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=out_dir))
+    _remove_stale_staging(out_dir)
+    staging = Path(tempfile.mkdtemp(prefix=f".staging-{os.getpid()}@{socket.gethostname()}-", dir=out_dir))
     try:
         yield staging
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _remove_stale_staging(out_dir: Path) -> None:
+    """The staging folders a report killed by SIGKILL left (no `finally` ran): those of a process
+    of this host that is gone, and those of older versions, which did not name theirs."""
+    for old in out_dir.glob(".staging-*"):
+        owner = re.fullmatch(r"\.staging-(\d+)@(.+)-[^-]+", old.name)
+        if owner and (owner.group(2) != socket.gethostname() or _alive(int(owner.group(1)))):
+            continue  # another host's, or a live report's
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process: alive
+        return True
+    return True
 
 
 def publish(report: Report, staging: Path, out_dir: Path) -> None:
