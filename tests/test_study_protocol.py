@@ -78,6 +78,12 @@ def test_the_mlflow_report_reads_the_study_protocol_only(tmp_path):
     assert read["CR_total"].mean() == rows["CR_total"].mean()
     assert notes == ["M0 seed 1 evaluated under another protocol (oneoff) only, not the study's (study): left out; "
                      "`sigmarl sweep` evaluates it under the study's"]
+    # a report composed without the sweep's eval overrides: the protocol most runs hold, the
+    # earliest among equals (the study's evaluations come before one-offs)
+    tie = client.create_experiment("tie")
+    log_evaluation(client, tie, rows, {"model": "M0", "seed": "0", "protocol_key": "study"}, {})
+    log_evaluation(client, tie, one_off, {"model": "M0", "seed": "0", "protocol_key": "oneoff"}, {})
+    assert load_evaluation_rows(client, "tie", "the-reports-own")["CR_total"].mean() == rows["CR_total"].mean()
 
 
 def test_a_folder_report_leaves_out_rows_of_another_protocol_than_its_study(tmp_path):

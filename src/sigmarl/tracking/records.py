@@ -122,9 +122,11 @@ def _ended(client, rid: str) -> Iterator[None]:
 
 def load_evaluation_rows(client, experiment: str, protocol: str | None = None,
                          notes: list[str] | None = None) -> pd.DataFrame:
-    """All per-simulation rows of the experiment's finished evaluation runs; with `protocol`,
-    those of that protocol only (`eval_key.protocol_key`: a one-off evaluation of the same run
-    never replaces the study's), the seeds evaluated under others alone named in `notes`."""
+    """All per-simulation rows of the experiment's finished evaluation runs; with `protocol`
+    (the report's own, `eval_key.protocol_key`), those of the study's protocol only: `protocol`
+    where runs hold it, else the one most runs hold (the earliest first among equals: a study's
+    evaluations precede one-offs). A one-off evaluation of the same run never replaces the
+    study's; the seeds evaluated under other protocols alone are named in `notes`."""
     # lazy: MLflow (~1 s) and pandas only where a store or rows are used
     import pandas as pd
 
@@ -140,10 +142,11 @@ def load_evaluation_rows(client, experiment: str, protocol: str | None = None,
     # replaces the old one, and a run of another config under the same label does not hide the
     # declared one's (the report chooses by fingerprint: sigmarl.report.inputs.columns)
     latest, others = {}, {}
+    protocol = _study_protocol(runs, protocol) if protocol is not None else None
     for run in runs:
         tags = run.data.tags
         key = (tags.get("model"), tags.get("seed"), tags.get("obs"), tags.get("fingerprint", ""))
-        theirs = tags.get("protocol_key", tags.get("eval_key"))  # runs from before the tag: the same
+        theirs = _protocol_of(run)
         if protocol is not None and theirs is not None and theirs != protocol:
             others[key] = theirs
             continue
@@ -167,6 +170,16 @@ def load_evaluation_rows(client, experiment: str, protocol: str | None = None,
             "or `sigmarl evaluate <run>` first" + "".join(f"; {line}" for line in lacking)
         )
     return pd.concat(frames, ignore_index=True)
+
+
+def _protocol_of(run) -> str | None:
+    """An evaluation run's protocol: its tag, or its evaluation key (equal, for runs before the tag)."""
+    return run.data.tags.get("protocol_key", run.data.tags.get("eval_key"))
+
+
+def _study_protocol(runs, preferred: str) -> str:
+    held = Counter(p for run in runs if (p := _protocol_of(run)) is not None)
+    return preferred if preferred in held or not held else held.most_common(1)[0][0]
 
 
 def evaluated_config(client, eval_run_id: str):
