@@ -1,5 +1,5 @@
 """A reliability round in one command: one named probe per fault of the reliability rounds
-(F1-F18, G1-G11) and per promise of the run folder (kill -9 resume, blocks, sweeps, `evaluate`'s
+(F1-F18, G1-G11; issue 59's N1, N2, H1, H3, H4) and per promise of the run folder (kill -9 resume, blocks, sweeps, `evaluate`'s
 lock, `report`), each run against the `sigmarl` CLI in its own temporary folder at a smoke
 budget, PASS or FAIL per probe (exit code 1 if any fails).
 
@@ -12,7 +12,7 @@ Each probe checks the property its name promises, not a stand-in: F13 that a NaN
 never reaches best.pt, `kill9-resume` that the resumed weights equal an uninterrupted run's.
 Bad input must end in one line `sigmarl: error: ...`, exit code 2, and leave nothing behind. A new
 round of probes starts by adding a `Probe` to one of the lists (`probe_input`, `probe_runs`,
-`probe_sweeps`).
+`probe_sweeps`, `probe_results`).
 """
 
 from __future__ import annotations

@@ -122,7 +122,8 @@ PROBES = [
     Probe("N1-one-off", "an evaluation of another scenario of a study's seed, then the study's report", _one_off,
           trains=True),
     Probe("H1-users-folder", "run_dir= naming a user's folder with a config.yaml of theirs", _users_folder_kept),
-    Probe("H1-root", "run_dir=/", _root_unchanged),
+    # out of --quick (the suite's): were the refusal ever lost, the suite run as root would write into /
+    Probe("H1-root", "run_dir=/", _root_unchanged, trains=True),
     Probe("H3-edited-rows", "report --from with a rows file edited to other valid values",
           refusal(FROM, "differs from the SHA-256", _edited_rows)),
     Probe("N2-other-settings", "a sweep adding a seed of other settings beside a study's seeds",

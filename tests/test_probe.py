@@ -1,5 +1,5 @@
-"""scripts/probe.py, the reliability round in one command: one probe per fault of both rounds
-(F1-F18, G1-G11) and per run-folder promise, every one passing; and its selection by name is
+"""scripts/probe.py, the reliability round in one command: one probe per fault of the rounds
+(F1-F18, G1-G11, and issue 59's N1, N2, H1, H3, H4) and per run-folder promise, every one passing; and its selection by name is
 exact (`F1` is F1's probe, never F11's)."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PROBE = ROOT / "scripts" / "probe.py"
-FAULTS = {f"F{i}" for i in range(1, 19)} | {f"G{i}" for i in range(1, 12)}
+FAULTS = {f"F{i}" for i in range(1, 19)} | {f"G{i}" for i in range(1, 12)} | {"N1", "N2", "H1", "H3", "H4"}
 
 
 def _names(*words: str) -> list[str]:
