@@ -65,4 +65,5 @@ def test_a_run_folder_sigmarl_wrote_is_its_own(tmp_path):
     (tmp_path / "checkpoint.pt").write_bytes(b"PK")
     (tmp_path / ".checkpoint.pt.k2j4x9ab.tmp").write_bytes(b"")  # what a kill mid-write leaves
     (tmp_path / "evaluation_rows-0123456789ab.csv").write_text("scenario\n")  # a one-off evaluation
+    (tmp_path / "provenance.json").write_text("{}")  # what each start ran on (sigmarl.run names it)
     check_ours(tmp_path)

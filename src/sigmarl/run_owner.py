@@ -3,9 +3,10 @@ told by content as well as by name (a user's own `config.yaml` is not a run's co
 else is refused in one line before a single file in it changes: `run_dir=mywork` never
 overwrites a user's notes, `run_dir=/` never writes into the root.
 
-`RUN_FILES` and `RUN_FILE_PATTERNS` declare every file sigmarl may write in a run folder. A
-feature that writes another file there (an imported policy's rows, a metric's own file, an
-animation, a provenance record) adds it here, or its folders are refused as not sigmarl's."""
+`RUN_FILES` (every file `sigmarl.run` names, `provenance.json` included) and `RUN_FILE_PATTERNS`
+declare every file sigmarl may write in a run folder. A feature that writes another file there
+(an imported policy's rows, a metric's own file, an animation) names it in `sigmarl.run` or adds
+a pattern here, or its folders are refused as not sigmarl's."""
 
 from __future__ import annotations
 
@@ -15,10 +16,9 @@ from pathlib import Path
 from sigmarl import run
 from sigmarl.errors import SigmarlError
 
-RUN_FILES = frozenset({
-    run.CONFIG_FILE, run.METRICS_FILE, run.RESUME_FILE, run.BEST_FILE, run.FINAL_FILE, run.RUN_ID_FILE,
-    run.ROWS_FILE, run.ROWS_META, run.DONE_FILE, run.FAILED_FILE, run.BLOCK_FILE, run.NEXT_RESUME_FILE,
-})
+# every file `sigmarl.run` names (its *_FILE and *_META constants): a file added there is declared here
+RUN_FILES = frozenset(value for name, value in vars(run).items()
+                      if name.endswith(("_FILE", "_META")) and isinstance(value, str))
 RUN_CONFIG_KEYS = frozenset({"model", "seed", "ppo", "env", "eval"})  # in every run's config.yaml, old ones too
 RUN_FILE_PATTERNS = (
     re.compile(r"evaluation_rows-[0-9a-f]{12}\.(csv|json)"),  # an evaluation under another protocol
