@@ -13,10 +13,10 @@ import pandas as pd
 import pytest
 from scipy import stats
 
+from sigmarl.ablation import flags_of, paper_model
 from sigmarl.cli import main
 from sigmarl.report.compare.curve_verdicts import (
     curve_verdicts_markdown,
-    paper_model_of,
     paper_seed_table,
     parting,
     separation_table,
@@ -70,12 +70,13 @@ def test_parting_is_the_first_window_of_the_last_unbroken_decided_run():
     assert parting(table(["lower", "higher"])) == {("M4", "M0"): (26, "higher")}
 
 
-def test_paper_model_of_the_observation_strategies():
-    assert paper_model_of("E,V,DA,DB,DC") == "M0"
-    assert paper_model_of("V,DA,DB,DC") == "M1"
-    assert paper_model_of("E,V,DA,DC") == "M4"
-    assert paper_model_of("E,V,DA,DB") == "M5"
-    assert paper_model_of("E,V") is None and paper_model_of("") is None
+def test_a_rows_paper_model_is_read_from_its_flags():
+    """The report reads a column's paper model from the flags its rows record (`obs`)."""
+    assert paper_model(flags_of("E,V,DA,DB,DC")) == "M0"
+    assert paper_model(flags_of("V,DA,DB,DC")) == "M1"
+    assert paper_model(flags_of("E,V,DA,DC")) == "M4"
+    assert paper_model(flags_of("E,V,DA,DB")) == "M5"
+    assert paper_model(flags_of("E,V")) is None and paper_model(flags_of("")) is None
 
 
 def test_the_paper_seed_against_the_prediction_interval_for_one_more_seed():

@@ -23,7 +23,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from sigmarl.ablation import PAPER_SCENARIOS, model_label
+from sigmarl.ablation import PAPER_SCENARIOS, model_label, strategy_flags
 from sigmarl.errors import SigmarlError
 from sigmarl.reward_config import RewardConfig
 from sigmarl.rules_config import RulesConfig
@@ -72,21 +72,11 @@ class MapConfig:
 
 
 @dataclass
-class ObsConfig:
-    """Observation design: the paper's five strategies as flags (all on = M0)."""
+class ObsConfig(strategy_flags()):  # a flag per declared strategy (`sigmarl.ablation.STRATEGIES`)
+    """Observation design: the strategies as flags (the paper's five on, any later one off = M0)."""
 
     preset: str = "full"
     """The conf/obs preset this started from (full, no_ego_view, ...); only a starting point, the flags decide."""
-    ego_view: bool = True
-    """E: observe in the ego vehicle's frame (false: a bird's-eye view)."""
-    vertices: bool = True
-    """V: observe the other vehicles' corner vertices."""
-    distance_to_agents: bool = True
-    """DA: observe the distances to the nearest other vehicles."""
-    distance_to_boundaries: bool = True
-    """DB: observe the distances to the lane boundaries (false: boundary points instead)."""
-    distance_to_center_line: bool = True
-    """DC: observe the distance to the route's center line."""
     n_nearest: int = 2
     """K: how many nearest other vehicles are observed."""
     n_ref_points: int = 3

@@ -71,7 +71,9 @@ def _walk(cls: type, prefix: str):
     docs, types = _field_docs(cls), get_type_hints(cls)
     for f in dataclasses.fields(cls):
         key = f"{prefix}{f.name}"
-        annotation, text = docs.get(f.name, (str(types[f.name]), ""))
+        # a generated field (ObsConfig's strategy flags) carries its help in its class's FIELD_HELP
+        declared = (getattr(types[f.name], "__name__", str(types[f.name])), getattr(cls, "FIELD_HELP", {}).get(f.name, ""))
+        annotation, text = docs.get(f.name, declared)
         if dataclasses.is_dataclass(types[f.name]):
             yield KeyHelp(key, annotation, None, text or _summary(types[f.name]), group=True)
             yield from _walk(types[f.name], key + ".")

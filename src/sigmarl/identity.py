@@ -16,6 +16,7 @@ import json
 import re
 from typing import TYPE_CHECKING, Any
 
+from sigmarl.ablation import later_flags
 from sigmarl.config import as_dict, flatten
 from sigmarl.errors import SigmarlError
 from sigmarl.reward_config import ADDED_KEYS as REWARD_KEYS
@@ -31,8 +32,14 @@ NOT_TRAINING = frozenset({"obs.preset", "map.name", "ppo.checkpoint_every", "ppo
 # Settings added after fingerprints were first recorded, each with the value every earlier run
 # had. At that value a setting is left out, so that a new key does not change every recorded
 # fingerprint (and split a published study in two); at any other value it counts. A new
-# training setting goes here with its default.
+# training setting goes here with its default; an observation strategy declared after the
+# paper's five is here by its declaration (off).
 ADDED_LATER: dict[str, Any] = {"network.centralised_critic": True, **REWARD_KEYS, **VEHICLE_KEYS, **RULES_KEYS}
+
+
+def added_later() -> dict[str, Any]:
+    """ADDED_LATER and the later observation strategies, as declared now."""
+    return {**ADDED_LATER, **{f"obs.{flag}": off for flag, off in later_flags().items()}}
 # a label names a folder and a table column: letters, digits, '.', '_', '-'
 _LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 
@@ -41,8 +48,8 @@ def training_settings(cfg: Config) -> dict[str, Any]:
     """The flat training settings the fingerprint covers."""
     values = as_dict(cfg)
     flat = flatten({g: values[g] for g in TRAINING_GROUPS if g in values})
-    return {k: v for k, v in flat.items()
-            if k not in NOT_TRAINING and not (k in ADDED_LATER and v == ADDED_LATER[k])}
+    later = added_later()
+    return {k: v for k, v in flat.items() if k not in NOT_TRAINING and not (k in later and v == later[k])}
 
 
 def fingerprint(cfg: Config) -> str:

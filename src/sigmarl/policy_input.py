@@ -1,9 +1,9 @@
 """The size of the policy's input, from the config alone (no environment is built or stepped).
 
-The observation (`sigmarl.env.observation.build_observation`) is a fixed layout: the agent's
-own state, its reference points, its center-line and boundary distances (or boundary
-points), then one block per observed neighbour. Only the neighbour count depends on the
-scenario, through its agent count: an agent observes `obs.n_nearest` others where that many
+The observation (`sigmarl.env.observation.build_observation`) is a fixed layout of declared
+blocks (`sigmarl.ablation.layout`), each with its size formula: the agent's own blocks, then
+one set per observed neighbour. Only the neighbour count depends on the scenario, through its
+agent count: an agent observes `obs.n_nearest` others where that many
 exist. A policy trained on one size cannot act on another, so a study whose variant would
 meet another size in an evaluation scenario is refused before anything trains.
 """
@@ -12,13 +12,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from sigmarl.ablation import OWN, layout
 from sigmarl.errors import SigmarlError
 
 if TYPE_CHECKING:
     from sigmarl.config import Config, ObsConfig
-
-BOUNDARY_POINTS = 5  # observed points of each corridor boundary (env.ego.SIDE_WINDOW)
-CORNERS = 4
 
 
 def neighbours(obs: ObsConfig, n_agents: int) -> int:
@@ -28,13 +26,9 @@ def neighbours(obs: ObsConfig, n_agents: int) -> int:
 
 def observation_size(obs: ObsConfig, n_agents: int) -> int:
     """The observation's length for `obs`'s flags among `n_agents` agents."""
-    ego = obs.ego_view
-    own = (1 if ego else 2 + 1 + 2)  # forward speed; or position, heading and velocity
-    own += 2 * int(obs.n_ref_points)
-    own += 1 if obs.distance_to_center_line else 0
-    own += 2 * (1 if obs.distance_to_boundaries else 2 * BOUNDARY_POINTS)
-    # per neighbour: its corners, or its position, heading and size; its velocity; its distance
-    other = (2 * CORNERS if obs.vertices else 2 + 1 + 2) + 2 + (1 if obs.distance_to_agents else 0)
+    blocks = [block for _, block in layout()]
+    own = sum(b.size(obs) for b in blocks if b.part == OWN)
+    other = sum(b.size(obs) for b in blocks if b.part != OWN)
     return own + neighbours(obs, n_agents) * other
 
 

@@ -1,4 +1,4 @@
-"""The observation vector: five switchable strategies, constant normalisers.
+"""The observation vector: the declared strategies' blocks (`sigmarl.ablation.STRATEGIES`), constant normalisers.
 
 Pure function of the batched state; every tensor is [E, A, ...].
 """
@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from sigmarl.ablation import OWN, layout
 from sigmarl.env.geometry import rotate, to_local, wrap_angle
 from sigmarl.env.params import NORMALISERS, VEHICLE
 
@@ -19,8 +20,6 @@ if TYPE_CHECKING:
 WORLD_SIZE = NORMALISERS.world
 EGO_SCALE = NORMALISERS.ego
 SPEED_SCALE = NORMALISERS.speed
-DIST_SCALE = NORMALISERS.distance
-HEADING_SCALE = NORMALISERS.heading
 
 
 @dataclass
@@ -57,55 +56,41 @@ def _frame(points: torch.Tensor, x: ObsInputs, ego: bool) -> torch.Tensor:
     return out.flatten(-2)
 
 
-def build_observation(x: ObsInputs, flags: ObsConfig) -> torch.Tensor:
-    """[E, A, D] observation for all agents at once."""
-    e = flags.ego_view
-    parts: list[torch.Tensor] = []
-    if not e:
-        parts += [x.pos / x.pos.new_tensor(x.world), (x.heading / HEADING_SCALE).unsqueeze(-1)]
-    parts.append(x.speed.unsqueeze(-1) / x.speed_scale if e else x.vel / x.speed_scale)
-    parts.append(_frame(x.ref_points, x, e))
-    if flags.distance_to_center_line:
-        parts.append(x.d_center.unsqueeze(-1) / DIST_SCALE)
-    for d, pts in ((x.d_left, x.left_points), (x.d_right, x.right_points)):
-        parts.append(d.unsqueeze(-1) / DIST_SCALE if flags.distance_to_boundaries else _frame(pts, x, e))
+@dataclass
+class View:
+    """What a block's builder (`sigmarl.ablation.Block.build`) reads: the inputs, the flags, the
+    frame (ego or world) and the helpers that place points in it and gather neighbours."""
 
-    k = x.neighbours.shape[-1]
-    if k:
-        parts.append(_others(x, flags).flatten(-2))
-    return torch.cat(parts, dim=-1)
+    x: ObsInputs
+    flags: ObsConfig
+    to_local = staticmethod(to_local)
+    rotate = staticmethod(rotate)
+    wrap_angle = staticmethod(wrap_angle)
 
+    @property
+    def ego(self) -> bool:
+        return bool(self.flags.ego_view)
 
-def _others(x: ObsInputs, flags: ObsConfig) -> torch.Tensor:
-    """[E, A, K, per_other] block for the K nearest other agents."""
-    e = flags.ego_view
-    nb = x.neighbours  # [E, A, K]
-    n_env, n_agents, k = nb.shape
+    def frame(self, points: torch.Tensor) -> torch.Tensor:
+        return _frame(points, self.x, self.ego)
 
-    def take(t: torch.Tensor) -> torch.Tensor:  # [E, A, ...] -> [E, A, K, ...] of neighbours
+    def take(self, t: torch.Tensor) -> torch.Tensor:
+        """[E, A, ...] -> [E, A, K, ...]: each agent's K nearest others' values."""
+        nb = self.x.neighbours
+        n_env, n_agents, k = nb.shape
         idx = nb.reshape(n_env, n_agents * k)
         idx = idx.view(n_env, n_agents * k, *([1] * (t.dim() - 2))).expand(-1, -1, *t.shape[2:])
         return t.gather(1, idx).view(n_env, n_agents, k, *t.shape[2:])
 
-    blocks: list[torch.Tensor] = []
-    if flags.vertices:
-        corners = take(x.corners)  # [E, A, K, 4, 2]
-        blocks.append(_frame(corners.flatten(2, 3), x, e).view(n_env, n_agents, k, 8))
-    else:
-        pos = take(x.pos)  # [E, A, K, 2]
-        heading = take(x.heading)
-        if e:
-            pos = to_local(pos, x.pos, x.heading) / EGO_SCALE
-            heading = heading - x.heading.unsqueeze(-1)
-            heading = wrap_angle(heading) if x.wrap_headings else heading
-        else:
-            pos = pos / pos.new_tensor(x.world)
-        size = pos.new_tensor([x.length / EGO_SCALE, x.width / EGO_SCALE]).expand(n_env, n_agents, k, 2)
-        blocks += [pos, (heading / HEADING_SCALE).unsqueeze(-1), size]
-    vel = take(x.vel)
-    if e:
-        vel = rotate(vel, -x.heading.unsqueeze(-1))
-    blocks.append(vel / x.speed_scale)
-    if flags.distance_to_agents:
-        blocks.append((x.distances.gather(2, nb) / DIST_SCALE).unsqueeze(-1))
-    return torch.cat(blocks, dim=-1)
+
+def build_observation(x: ObsInputs, flags: ObsConfig) -> torch.Tensor:
+    """[E, A, D] observation for all agents at once: the declared blocks (`ablation.layout`) in
+    order, the K nearest others' blocks side by side per neighbour."""
+    view = View(x, flags)
+    own: list[torch.Tensor] = []
+    others: list[torch.Tensor] = []
+    for _, block in layout():
+        (own if block.part == OWN else others).extend(block.build(view))
+    if x.neighbours.shape[-1] and others:
+        own.append(torch.cat(others, dim=-1).flatten(-2))
+    return torch.cat(own, dim=-1)

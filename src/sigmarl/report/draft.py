@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.report.compare.curve_verdicts import paper_model_of
+from sigmarl.ablation import flags_of, paper_model
 from sigmarl.report.compare.verdicts import Design
 from sigmarl.report.table.tables import ResultTable
 
@@ -127,9 +127,10 @@ class Draft:
 
     @property
     def paper_models(self) -> dict[str, str | None]:
-        """Each column's paper model (M0..M5) by its observation strategies, None for another design."""
-        obs = self.rows.drop_duplicates("model").set_index("model")["obs"].astype(str)
-        return {m: paper_model_of(obs.get(m, "")) for m in self.models}
+        """Each column's paper model (M0..M5) by the flags its rows record (their `obs` column, the
+        strategies that were on; one declared since was off), None for another design."""
+        obs = self.rows.drop_duplicates("model").set_index("model")["obs"].fillna("").astype(str)
+        return {m: paper_model(flags_of(obs.get(m, ""))) for m in self.models}
 
     def file(self, key: str, name: str) -> Path:
         """Where the current section's file `name` goes, recorded under `key` (a figure's path)."""

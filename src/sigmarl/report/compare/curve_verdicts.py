@@ -29,7 +29,6 @@ import math
 import numpy as np
 import pandas as pd
 
-from sigmarl.ablation import OBS_FLAGS
 from sigmarl.report.compare.verdicts import Design
 from sigmarl.report.format import signed
 from sigmarl.report.table.training import LAST
@@ -100,16 +99,6 @@ def parting(table: pd.DataFrame) -> dict[tuple[str, str], tuple[int, str] | None
             i -= 1
         out[key] = (int(firsts[i]), verdicts[-1])
     return out
-
-
-def paper_model_of(obs: str) -> str | None:
-    """The paper's model (M0..M5) whose observation strategies are `obs` ("E,V,DA,DB,DC"), if any."""
-    names = list(OBS_FLAGS.values())
-    on = set(obs.split(",")) if obs else set()
-    if on == set(names):
-        return "M0"
-    missing = [k for k, name in enumerate(names, 1) if name not in on]
-    return f"M{missing[0]}" if len(missing) == 1 and on == set(names) - {names[missing[0] - 1]} else None
 
 
 def paper_seed_table(summary: pd.DataFrame, paper_last: dict[str, float], paper_model: dict[str, str | None],
