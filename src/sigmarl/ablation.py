@@ -80,7 +80,7 @@ def _velocity(v) -> list[Any]:
     return [(v.rotate(vel, -v.x.heading.unsqueeze(-1)) if v.ego else vel) / v.x.speed_scale]
 
 
-def _when(flag: str, build: Callable[[Any], list[Any]]) -> Callable[[Any], list[Any]]:
+def when_on(flag: str, build: Callable[[Any], list[Any]]) -> Callable[[Any], list[Any]]:
     """A block that is there only while its strategy is on."""
     return lambda v: build(v) if getattr(v.flags, flag) else []
 
@@ -101,13 +101,13 @@ STRATEGIES: list[Strategy] = [
     Strategy("vertices", "V", "observe the other vehicles' corner vertices",
              Block(OTHER, lambda o: 2 * CORNERS if o.vertices else 2 + 1 + 2, _shape), paper=True),
     Strategy("distance_to_agents", "DA", "observe the distances to the nearest other vehicles",
-             Block(OTHER, lambda o: int(o.distance_to_agents), _when("distance_to_agents", lambda v: [
+             Block(OTHER, lambda o: int(o.distance_to_agents), when_on("distance_to_agents", lambda v: [
                  (v.x.distances.gather(2, v.x.neighbours) / N.distance).unsqueeze(-1)])), paper=True),
     Strategy("distance_to_boundaries", "DB", "observe the distances to the lane boundaries (false: boundary "
              "points instead)", Block(OWN, lambda o: 2 * (1 if o.distance_to_boundaries else 2 * BOUNDARY_POINTS),
                                        _boundaries), paper=True),
     Strategy("distance_to_center_line", "DC", "observe the distance to the route's center line",
-             Block(OWN, lambda o: int(o.distance_to_center_line), _when("distance_to_center_line", lambda v: [
+             Block(OWN, lambda o: int(o.distance_to_center_line), when_on("distance_to_center_line", lambda v: [
                  v.x.d_center.unsqueeze(-1) / N.distance])), paper=True),
 ]
 # Where the paper's blocks sit in the vector (by base block or flag); a later strategy's block
