@@ -85,7 +85,8 @@ def when_on(flag: str, build: Callable[[Any], list[Any]]) -> Callable[[Any], lis
     return lambda v: build(v) if getattr(v.flags, flag) else []
 
 
-BOUNDARY_POINTS, CORNERS = 5, 4  # observed points of each corridor boundary (env.ego.SIDE_WINDOW); a box's
+BOUNDARY_POINTS = 5  # observed points of each corridor boundary (env.ego.SIDE_WINDOW)
+CORNERS = 4
 
 # The observation's blocks that no strategy switches (their form may follow ego_view).
 BASE_BLOCKS: dict[str, Block] = {
@@ -125,14 +126,13 @@ def layout() -> list[tuple[str, Block]]:
 
 def strategy_flags() -> type:
     """The flags as a dataclass (ObsConfig's base): each with its default and its help line."""
+    for what in ("flag", "short"):
+        names = [getattr(s, what) for s in STRATEGIES]
+        if len(set(names)) < len(names):
+            raise ValueError(f"two observation strategies share a {what}: {names}")
     flags = dataclasses.make_dataclass("StrategyFlags", [(s.flag, bool, s.paper) for s in STRATEGIES])
     flags.FIELD_HELP = {s.flag: f"{s.short}: {s.help}." for s in STRATEGIES}
     return flags
-
-
-def obs_flags() -> dict[str, str]:
-    """Every declared strategy: flag -> short name."""
-    return {s.flag: s.short for s in STRATEGIES}
 
 
 def later_flags() -> dict[str, bool]:
