@@ -15,6 +15,8 @@ import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 ROWS = sorted(ROOT.glob("results/*/*/seed*/evaluation_rows.csv"))
+# and the paper's own policies evaluated (`M<k>-ITSC24/<rules>/`): no run config of ours
+LABELLED = [*ROWS, *sorted(ROOT.glob("results/paper-policies/*/*/evaluation_rows.csv"))]
 TOY = "own_heading"
 
 
@@ -68,13 +70,15 @@ def check_with_toy() -> None:
     seen = make_scenario(on, num_envs=1, n_agents=4).current_observation().shape[-1]
     assert seen == 33, seen
     # every committed run: its config reads the toy as off, its fingerprint is the one its rows
-    # recorded, and its rows read as the paper model its label names
+    # recorded; and every committed row file reads as the paper model its label names
     for path in ROWS:
         cfg = read_run_config(path.parent / "config.yaml")
         rows = pd.read_csv(path, dtype={"obs": str, "fingerprint": str}, keep_default_na=False)
         assert getattr(cfg.obs, TOY) is False, path
         if "fingerprint" in rows.columns:
             assert set(rows["fingerprint"]) == {fingerprint(cfg)}, path
+    for path in LABELLED:
+        rows = pd.read_csv(path, usecols=["model", "obs"], dtype=str, keep_default_na=False)
         for model, obs in set(zip(rows["model"], rows["obs"], strict=True)):
             assert paper_model(flags_of(obs)) == model.split("-")[0], (path, model, obs)
     print("toy strategy followed", len(ROWS))
@@ -91,7 +95,7 @@ def test_committed_rows_read_as_their_paper_models_as_declared_now() -> None:
     from sigmarl.ablation import flags_of, paper_model
 
     models = {}
-    for path in ROWS:
+    for path in LABELLED:
         rows = pd.read_csv(path, usecols=["model", "obs"], dtype=str, keep_default_na=False)
         models.update({m: paper_model(flags_of(o)) for m, o in zip(rows["model"], rows["obs"], strict=True)})
     assert models == {m: m.split("-")[0] for m in models}

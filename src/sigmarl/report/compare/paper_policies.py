@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from sigmarl.report.compare.curve_verdicts import paper_model_of
+from sigmarl.ablation import flags_of, paper_model
 from sigmarl.report.compare.verdicts import seed_values
 from sigmarl.report.format import signed
 from sigmarl.report.table.aggregate import trim_collisions
@@ -37,7 +37,8 @@ COLUMNS = [
 def _policy_values(imported: pd.DataFrame) -> dict[tuple[str, str, str], tuple[str, float]]:
     """(paper model, rules, scenario) -> (label, trimmed mean CR_total) of the imported policies;
     of two labels of one model, the first by name."""
-    models = {str(label): paper_model_of(str(obs)) for label, obs in zip(imported["model"], imported["obs"], strict=True)}
+    models = {str(label): paper_model(flags_of(str(obs)))
+              for label, obs in zip(imported["model"], imported["obs"], strict=True)}
     # each (label, rules) trimmed as one evaluation of its own
     keyed = imported.assign(model=imported["model"].astype(str) + "\t" + imported["rules"].astype(str), seed=0)
     values: dict[tuple[str, str, str], tuple[str, float]] = {}
