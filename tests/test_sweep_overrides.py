@@ -95,11 +95,11 @@ def test_bad_sweep_overrides(user, message):
 
 
 @pytest.mark.parametrize(("override", "message"), [
-    ("eval.n_sims=0", "eval.n_sims must be positive, got 0"),
-    ("eval.steps=-5", "eval.steps must be positive, got -5"),
+    ("eval.n_sims=0", "eval.n_sims must be in 1..65536, got 0"),
+    ("eval.steps=-5", "eval.steps must be in 1..1000000, got -5"),
     ("eval.scenarios=[CPM,Nowhere]", "unknown scenario 'Nowhere'; choose from CPM, Intersection"),
     ("eval.scenarios=[]", "eval.scenarios is empty"),
-    ("eval.checkpoint=last", "eval.checkpoint must be 'best' or 'final'"),
+    ("eval.checkpoint=last", "eval.checkpoint='last' is not one of best, final"),
 ])
 def test_bad_evaluation_settings_end_the_sweep_before_training(tmp_path, monkeypatch, capsys, override, message):
     monkeypatch.chdir(tmp_path)
@@ -112,7 +112,7 @@ def test_bad_evaluation_settings_end_the_sweep_before_training(tmp_path, monkeyp
 
 
 def test_a_bad_value_inside_a_sweep_is_caught_too(tmp_path):
-    with pytest.raises(SigmarlError, match="eval.n_sims must be positive, got 0"):
+    with pytest.raises(SigmarlError, match=r"eval.n_sims must be in 1\.\.65536, got 0"):
         plan_sweep(["eval.n_sims=4,0", "models=[M0]", "tracking.enabled=false", f"runs_root={tmp_path}/runs"])
 
 

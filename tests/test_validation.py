@@ -92,12 +92,14 @@ def test_animation_runs_on_the_commands_device_not_the_checkpoints(tmp_path):
 
 
 def test_the_activation_choices_are_the_networks():
-    from typing import get_args
+    from dataclasses import fields
 
+    from sigmarl.config import NetworkConfig
+    from sigmarl.ranges import range_of
     from sigmarl.training.networks import ACTIVATIONS
-    from sigmarl.validate import Activation
 
-    assert set(get_args(Activation)) == set(ACTIVATIONS)
+    (activation,) = [f for f in fields(NetworkConfig) if f.name == "activation"]
+    assert set(range_of(activation).choices) == set(ACTIVATIONS)
 
 
 def test_more_agents_than_the_map_can_hold_are_refused_before_the_env_is_built():

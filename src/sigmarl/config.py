@@ -25,9 +25,17 @@ from omegaconf.errors import OmegaConfBaseException
 
 from sigmarl.ablation import PAPER_SCENARIOS, model_label, strategy_flags
 from sigmarl.errors import SigmarlError
+from sigmarl.ranges import ranged
 from sigmarl.reward_config import RewardConfig
 from sigmarl.rules_config import RulesConfig
 from sigmarl.vehicle_config import VehicleConfig
+
+# numpy's legacy generator (np.random.seed) takes seeds in 0..2**32-1, torch any up to 2**64-1
+SEED_MAX = 2**32 - 1
+# A generous cap on torch's threads, whatever the machine (where a job runs it is also held to
+# that machine's cores, `sigmarl.resources.check_threads`): a million spawned threads ran a
+# machine out of process ids and took its other processes down with it.
+MAX_THREADS = 1024
 
 
 @dataclass
@@ -36,34 +44,34 @@ class MapConfig:
 
     name: str = "cpm_intersection"
     """The map's name (conf/map/<name>.yaml); labels figures and `sigmarl maps`."""
-    kind: str = "cpm"
+    kind: str = ranged("cpm", choices=("cpm", "intersection", "on_ramp", "roundabout", "osm"))
     """Which builder makes it: cpm | intersection | on_ramp | roundabout | osm."""
-    route_set: str = "intersection"
+    route_set: str = ranged("intersection", choices=("intersection", "loops"))
     """cpm only: the central intersection's 24 routes (intersection) or the whole map's 7 loops (loops)."""
-    lane_width: float = 0.20
+    lane_width: float = ranged(0.20, lo=0, lo_open=True)
     """Lane width in m of procedural and OSM maps (the CPM map is fixed at 0.15)."""
     # intersection and roundabout builders: arms at angles 2*pi*k/n_arms (k=0 east)
-    arm_length: float = 1.25
+    arm_length: float = ranged(1.25, lo=0, lo_open=True)
     """Intersection and roundabout: length in m of each arm's straight lanes."""
-    arm_lengths: list[float] = field(default_factory=list)
+    arm_lengths: list[float] = ranged(factory=list, lo=0, lo_open=True)
     """Per-arm lengths in m: arm k is arm_lengths[k % len] long (empty: arm_length for all)."""
-    n_arms: int = 4
+    n_arms: int = ranged(4, lo=3, hi=6)
     """Intersection and roundabout: number of arms, at angles 2 pi k / n_arms (k = 0 east)."""
-    junction_offset: float = 0.45
+    junction_offset: float = ranged(0.45, lo=0, lo_open=True)
     """Intersection: distance in m from the junction's center to where the arms start."""
-    radius: float = 0.55
+    radius: float = ranged(0.55, lo=0, lo_open=True)
     """Roundabout: the ring's center-line radius in m."""
-    entry_radius: float = 0.35
+    entry_radius: float = ranged(0.35, lo=0, lo_open=True)
     """Roundabout: radius in m of the arcs joining the arms to the ring."""
-    n_ramps: int = 2
+    n_ramps: int = ranged(2, lo=1, hi=64, size=True)
     """On-ramp: number of ramps joining the main road."""
-    main_length: float = 4.1
+    main_length: float = ranged(4.1, lo=0, lo_open=True)
     """On-ramp: length in m of the main road."""
-    ramp_drop: float = 1.63
+    ramp_drop: float = ranged(1.63, lo=0, lo_open=True)
     """On-ramp: how far in m below the main road's center line a ramp starts."""
-    ramp_angle: float = 45.0
+    ramp_angle: float = ranged(45.0, lo=10, hi=80, unit="degrees")
     """On-ramp: the ramps' angle to the main road, in degrees."""
-    ramp_radius: float = 0.8
+    ramp_radius: float = ranged(0.8, lo=0, lo_open=True)
     """On-ramp: radius in m of the bend onto the main road."""
     path: str = ""
     """kind=osm: the OSM file (SigmaRL center-line ways or Lanelet2 relations)."""
@@ -77,13 +85,13 @@ class ObsConfig(strategy_flags()):  # a flag per declared strategy (`sigmarl.abl
 
     preset: str = "full"
     """The conf/obs preset this started from (full, no_ego_view, ...); only a starting point, the flags decide."""
-    n_nearest: int = 2
+    n_nearest: int = ranged(2, lo=0, hi=1024, size=True)
     """K: how many nearest other vehicles are observed."""
-    n_ref_points: int = 3
+    n_ref_points: int = ranged(3, lo=1, hi=3)
     """How many short-term reference points on the center line are observed."""
-    ref_point_stride: int = 2
+    ref_point_stride: int = ranged(2, lo=1, hi=6)
     """Resampled center-line points between reference points (2 x 0.08 m)."""
-    noise: float = 0.02
+    noise: float = ranged(0.02, lo=0)
     """Total width of the zero-mean uniform noise added to every observation entry."""
 
 
@@ -92,15 +100,15 @@ class EnvConfig:
     """The training environment (evaluation sets its own agent counts, mode and length from
     `eval.*` and the scenarios; the number of training environments is `ppo.num_envs`)."""
 
-    n_agents: int = 4
+    n_agents: int = ranged(4, lo=1, hi=10**5, size=True)
     """Vehicles per training environment."""
-    max_steps: int = 128
+    max_steps: int = ranged(128, lo=1, hi=10**6, size=True)
     """Training episode length in steps (evaluation: eval.steps)."""
-    spawn_start_m: float = 0.5
+    spawn_start_m: float = ranged(0.5, lo=0)
     """Training spawns on non-loop routes start this many m after a route's start."""
-    spawn_end_fraction: float = 0.5
+    spawn_end_fraction: float = ranged(0.5, lo=0, hi=1, lo_open=True)
     """Training spawns on non-loop routes end at this fraction of the route's length."""
-    spawn_margin_m: float = 0.25
+    spawn_margin_m: float = ranged(0.25, lo=0)
     """Test spawns keep this many m from either end of a route."""
     reward: RewardConfig = field(default_factory=RewardConfig)
     """The reward's weights and shaping scales (the paper's by default)."""
@@ -112,11 +120,11 @@ class EnvConfig:
 class NetworkConfig:
     """The actor and critic MLPs (the paper's: 256x256 tanh, a centralised critic: MAPPO)."""
 
-    hidden: list[int] = field(default_factory=lambda: [256, 256])
+    hidden: list[int] = ranged(factory=lambda: [256, 256], lo=1, hi=65536, size=True)
     """hidden layer sizes of the actor and of the critic"""
-    activation: str = "tanh"
+    activation: str = ranged("tanh", choices=("tanh", "relu", "elu"))
     """the hidden layers' activation: tanh | relu | elu"""
-    scale_floor: float = 1e-4
+    scale_floor: float = ranged(1e-4, lo=0, lo_open=True)
     """the smallest standard deviation of the policy's Gaussian"""
     centralised_critic: bool = True
     """true (MAPPO, the paper's): the critic sees all agents' observations; false (IPPO): each agent's value from its own observation only"""
@@ -128,41 +136,41 @@ class NetworkConfig:
 class PPOConfig:
     """MAPPO's training budget and update (the paper's settings by default)."""
 
-    iterations: int = 250
+    iterations: int = ranged(250, lo=1)
     """Training iterations (collection + update)."""
-    frames_per_iteration: int = 4096
+    frames_per_iteration: int = ranged(4096, lo=1, hi=2**30, size=True)
     """Frames collected per iteration: num_envs x rollout steps (128, one training episode)."""
-    num_envs: int = 32
+    num_envs: int = ranged(32, lo=1, hi=2**20, size=True)
     """Parallel environments while training."""
-    epochs: int = 60
+    epochs: int = ranged(60, lo=1)
     """PPO epochs over each iteration's frames."""
-    minibatch_size: int = 512
+    minibatch_size: int = ranged(512, lo=1, hi=2**30, size=True)
     """Frames per minibatch of the PPO update."""
-    lr: float = 2e-4
+    lr: float = ranged(2e-4, lo=0)
     """Learning rate at the first iteration (linear decay to lr_final)."""
-    lr_final: float = 1e-5
+    lr_final: float = ranged(1e-5, lo=0)
     """Learning rate at the last iteration."""
-    max_grad_norm: float = 1.0
+    max_grad_norm: float = ranged(1.0, lo=0)
     """Gradients are clipped to this norm."""
-    clip_epsilon: float = 0.2
+    clip_epsilon: float = ranged(0.2, lo=0, hi=1, lo_open=True, hi_open=True)
     """PPO's clipping of the probability ratio."""
-    gamma: float = 0.99
+    gamma: float = ranged(0.99, lo=0, hi=1)
     """Discount factor."""
-    lmbda: float = 0.9
+    lmbda: float = ranged(0.9, lo=0, hi=1)
     """GAE's lambda."""
-    entropy_coef: float = 1e-4
+    entropy_coef: float = ranged(1e-4, lo=0)
     """Weight of the entropy bonus in the loss."""
     normalize_advantage: bool = False
     """Normalise advantages per minibatch."""
-    loss: str = "lean"
+    loss: str = ranged("lean", choices=("lean",))
     """lean: the PPO loss on plain tensors (the one loss; checked against torchrl's ClipPPOLoss in the tests)."""
-    precision: str = "fp32"
+    precision: str = ranged("fp32", choices=("fp32", "bf16", "auto"))
     """fp32 | bf16: the update's forward passes under bfloat16 autocast | auto: bf16 where native."""
     # bf16 keeps log-probabilities, ratios, advantages and losses in fp32; auto picks bf16 where
     # the CPU has native bf16 (avx512_bf16 / amx_bf16) or the GPU supports it
-    checkpoint_every: int = 5
+    checkpoint_every: int = ranged(5, lo=1)
     """Write the resume point checkpoint.pt every this many iterations."""
-    stop_after: int = 0
+    stop_after: int = ranged(0, lo=0)
     """>0: stop (as if interrupted, resumable) once this many iterations are done."""
 
 
@@ -172,13 +180,13 @@ class EvalConfig:
 
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
     """Scenario names (conf/scenario/<name>.yaml); conf/config.yaml takes the study's."""
-    n_sims: int = 32
+    n_sims: int = ranged(32, lo=1, hi=2**16, size=True)
     """Simulations per scenario."""
-    steps: int = 1200
+    steps: int = ranged(1200, lo=1, hi=10**6, size=True)
     """Steps per simulation."""
-    seed: int = 2024
+    seed: int = ranged(2024, lo=0, hi=SEED_MAX)
     """Seed of every evaluation, so every model faces the same initial states."""
-    checkpoint: str = "best"
+    checkpoint: str = ranged("best", choices=("best", "final"))
     """Which checkpoint is evaluated: best (the paper's choice) | final."""
 
 
@@ -211,17 +219,17 @@ class StudyConfig:
     """Variant -> its own baseline where it is not `baseline` (a factorial study: {M4-paper: M0-paper})."""
     interactions: dict[str, list[str]] = field(default_factory=dict)
     """Name -> [x, y]: does x's comparison with its baseline differ from y's with its own?"""
-    seeds: list[int] = field(default_factory=lambda: [0])
+    seeds: list[int] = ranged(factory=lambda: [0], lo=0, hi=SEED_MAX)
     """Seeds of every variant (seeds=[0,1,2] on the command line)."""
     scenarios: list[str] = field(default_factory=lambda: list(PAPER_SCENARIOS))
     """The scenarios every variant is evaluated on."""
     metrics: list[str] = field(default_factory=lambda: ["CR_total"])
     """The metrics each comparison decides on."""
-    margins: dict[str, float] = field(default_factory=lambda: {"CR_total": 0.1, "CD": 0.1, "AS": 0.01})
+    margins: dict[str, float] = ranged(factory=lambda: {"CR_total": 0.1, "CD": 0.1, "AS": 0.01}, lo=0, lo_open=True)
     """Equivalence margins per metric, in the table's units (percentage points, cm, m/s)."""
-    max_seeds: int = 10
+    max_seeds: int = ranged(10, lo=2, hi=10**4, size=True)
     """seeds=auto adds seeds up to this many per variant."""
-    slow_seed: float = 0.0
+    slow_seed: float = ranged(0.0, lo=0, hi=100)
     """A seed whose worst CR_total (%) over the scenarios exceeds this is slow; the report counts them per variant and tests each against its baseline (Fisher's exact). 0: off."""
     checkpoints_from: str = ""
     """A folder of trained runs (<label>/seed<k>/) to evaluate instead of training (e.g. results/paper-budget)."""
@@ -235,7 +243,7 @@ class StudyConfig:
 class SweepConfig:
     """How `sigmarl sweep` packs its jobs (not a training setting: no fingerprint sees it)."""
 
-    seeds_per_job: int = 0
+    seeds_per_job: int = ranged(0, lo=0, hi=4096, size=True)
     """Seeds of one variant each sweep job trains as one seed block (`sigmarl train seeds=[...]`). 0: by device, 1 on cpu (measured: a block seed costs 0.88-1.07 of a lone one there, benchmarks/bench_blocks.py), 64 on cuda (estimated; not yet measured)."""
 
 
@@ -251,11 +259,11 @@ class Config:
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     eval: EvalConfig = field(default_factory=EvalConfig)
     rules: RulesConfig = field(default_factory=RulesConfig)
-    seed: int = 0
+    seed: int = ranged(0, lo=0, hi=SEED_MAX)
     """The training seed (0..2**32-1)."""
-    device: str = "cpu"
+    device: str = ranged("cpu", pattern=r"(cpu|cuda)(:[0-9]+)?", form="cpu, cuda or cuda:N (N: a GPU's number)")
     """Torch device: cpu | cuda | cuda:N."""
-    threads: int = 1
+    threads: int = ranged(1, lo=1, hi=MAX_THREADS, size=True)
     """Torch threads of every command that computes."""
     resume: bool = False
     """`sigmarl train`: continue the run folder's training from its checkpoint."""

@@ -24,10 +24,10 @@ class Floor(NamedTuple):
 
 FLOORS: tuple[Floor, ...] = (
     Floor("ground", "the errors a user can cause, the run folder, crash points, a job's resources and "
-          "progress lines, the paper's vocabulary and constants, the metrics' records, the study-free "
+          "progress lines, what values a config key takes, the paper's vocabulary and constants, the metrics' records, the study-free "
           "statistics, and the floors' own list",
           ("sigmarl", "sigmarl.errors", "sigmarl.crash", "sigmarl.run", "sigmarl.block_membership",
-           "sigmarl.resources", "sigmarl.progress", "sigmarl.ablation", "sigmarl.env.params", "sigmarl.metrics",
+           "sigmarl.resources", "sigmarl.ranges", "sigmarl.progress", "sigmarl.ablation", "sigmarl.env.params", "sigmarl.metrics",
            "sigmarl.stats", "sigmarl.floors")),
     Floor("config records", "the structured-config schema and its groups' records; every key's help "
           "line; \"did you mean\"",

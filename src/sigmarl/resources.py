@@ -119,7 +119,20 @@ def use_threads(threads: int) -> None:
     its composed config (`threads`), right before its work (torch is imported only then)."""
     if threads < 1:
         raise SigmarlError(f"threads must be positive, got {threads}")
+    check_threads(threads)
     # lazy: torch only right before the work (start-up)
     import torch
 
     torch.set_num_threads(threads)
+
+
+THREADS_PER_CPU = 4  # beyond this, more threads only contend; far beyond it, they exhaust process ids
+
+
+def check_threads(threads: int, cpus: int | None = None) -> None:
+    """`threads` within a generous cap of the CPUs of the machine the work runs on (checked
+    there, not where a sweep was submitted: a login node may have fewer cores than a job gets)."""
+    cpus = cpus or os.cpu_count() or 1
+    if threads > THREADS_PER_CPU * cpus:
+        raise SigmarlError(f"threads={threads} is more than {THREADS_PER_CPU} x the {cpus} CPUs of this machine "
+                           f"({socket.gethostname()}); use threads={cpus} or fewer")

@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass, fields
 
 from sigmarl.env.params import REWARD
+from sigmarl.ranges import ranged
 
 
 @dataclass
@@ -32,17 +33,17 @@ class RewardConfig:
     """reward of a step in which the agent collides with another"""
     lane_collision: float = REWARD.lane_collision
     """reward of a step in which the agent leaves its lane"""
-    near_boundary_at: float = REWARD.near_boundary_at
+    near_boundary_at: float = ranged(REWARD.near_boundary_at, lo=0, lo_open=True)
     """m: the boundary penalty decays from full at 0 m to none at this distance"""
-    deviation_scale: float = REWARD.deviation_scale
+    deviation_scale: float = ranged(REWARD.deviation_scale, lo=0, lo_open=True)
     """m: the center-line distance that costs the full center_line_deviation weight"""
-    near_agent_full_at: float = REWARD.near_agent_at[0]
+    near_agent_full_at: float = ranged(REWARD.near_agent_at[0], lo=0, lo_open=True)
     """m, center to center: another agent closer than this costs the full near_agents weight"""
     near_agent_zero_at: float = REWARD.near_agent_at[1]
     """m, center to center: another agent this far or farther costs nothing"""
-    steering_free_deg: float = 10.0
+    steering_free_deg: float = ranged(10.0, lo=0)
     """degrees of steering change per step that cost nothing"""
-    steering_scale_deg: float = 50.0
+    steering_scale_deg: float = ranged(50.0, lo=0, lo_open=True)
     """degrees of steering change (beyond the free ones) that cost the full steering_change weight"""
 
     @property
@@ -59,14 +60,9 @@ ADDED_KEYS = {f"env.reward.{f.name}": f.default for f in fields(RewardConfig)}
 
 
 def check_reward(reward: RewardConfig) -> None:
-    """The shaping scales are usable: positive, and the agents' decay runs from near to far."""
+    """The agents' decay runs from near to far (each scale's own range is declared on its field)."""
     from sigmarl.errors import SigmarlError
 
-    for key in ("near_boundary_at", "deviation_scale", "near_agent_full_at", "steering_scale_deg"):
-        if getattr(reward, key) <= 0:
-            raise SigmarlError(f"env.reward.{key} must be positive, got {getattr(reward, key)}")
-    if reward.steering_free_deg < 0:
-        raise SigmarlError(f"env.reward.steering_free_deg must be >= 0, got {reward.steering_free_deg}")
     if reward.near_agent_zero_at <= reward.near_agent_full_at:
         raise SigmarlError(f"env.reward.near_agent_zero_at ({reward.near_agent_zero_at}) must be above "
                            f"env.reward.near_agent_full_at ({reward.near_agent_full_at})")

@@ -23,21 +23,12 @@ from sigmarl.errors import SigmarlError
 from sigmarl.identity import LABEL_RULE, check_label, is_label
 from sigmarl.metrics import metric
 from sigmarl.paths import conf_dir, config_files
+from sigmarl.ranges import check_ranges
 from sigmarl.reward_config import check_reward
 from sigmarl.scenarios import Scenario, scenario, scenario_names
 from sigmarl.tracking.tracker import tracker_class
-from sigmarl.vehicle_config import check_vehicle
 
-MapKind = Literal["cpm", "intersection", "on_ramp", "roundabout", "osm"]
-RouteSet = Literal["intersection", "loops"]  # the CPM map's
-Activation = Literal["tanh", "relu", "elu"]
-Loss = Literal["lean"]  # one loss; torchrl's ClipPPOLoss is its oracle in the tests
-Precision = Literal["fp32", "bf16", "auto"]
-Checkpoint = Literal["best", "final"]
 DeviceType = Literal["cpu", "cuda"]
-
-# numpy's legacy generator (np.random.seed) takes seeds in 0..2**32-1, torch any up to 2**64-1
-SEED_MAX = 2**32 - 1
 # Reference points are slots of the environment's center-line window, which reaches 6
 # resampled points ahead of the vehicle's own (env.ego.LINE_WINDOW).
 MAX_REF_REACH = 6
@@ -51,13 +42,6 @@ def choice(key: str, value: str, allowed: type) -> str:
     return value
 
 
-def _positive(prefix: str, node: object, keys: tuple[str, ...], strict: bool = True) -> None:
-    for key in keys:
-        value = getattr(node, key)
-        if value < 0 or (strict and value == 0):
-            raise SigmarlError(f"{prefix}.{key} must be {'positive' if strict else '>= 0'}, got {value}")
-
-
 def device_type(device: str) -> str:
     """cpu or cuda for `device` (`cuda:1` is cuda). Whether a GPU exists is checked where the
     device is used, not here: a sweep composes its jobs on a machine that may have none."""
@@ -67,43 +51,26 @@ def device_type(device: str) -> str:
 def check(cfg: Config) -> Config:
     """`cfg` if every value is usable; otherwise one SigmarlError naming the key."""
     check_finite(cfg)
-    if not 0 <= cfg.seed <= SEED_MAX:
-        raise SigmarlError(f"seed must be in 0..{SEED_MAX}, got {_short(cfg.seed)}")
-    if cfg.threads < 1:
-        raise SigmarlError(f"threads must be positive, got {cfg.threads}")
-    device_type(cfg.device)
+    check_ranges(cfg)  # each key's own range, declared on its field (`sigmarl.ranges`)
     check_map(cfg.map)
     obs = cfg.obs
-    _positive("obs", obs, ("n_nearest", "noise"), strict=False)
-    _positive("obs", obs, ("n_ref_points", "ref_point_stride"))
-    if obs.n_ref_points > 3:
-        raise SigmarlError(f"obs.n_ref_points must be 1..3, got {obs.n_ref_points}")
     if obs.n_ref_points * obs.ref_point_stride > MAX_REF_REACH:
         raise SigmarlError(
             f"obs.n_ref_points x obs.ref_point_stride must be at most {MAX_REF_REACH} (the reference "
             f"points lie in the {MAX_REF_REACH} center-line points ahead), got "
             f"{obs.n_ref_points} x {obs.ref_point_stride}")
-    _positive("env", cfg.env, ("n_agents", "max_steps"))
     if obs.n_nearest >= cfg.env.n_agents:
         raise SigmarlError(f"obs.n_nearest={obs.n_nearest} needs more than env.n_agents={cfg.env.n_agents} "
                            f"training agents (an agent observes at most the {cfg.env.n_agents - 1} others)")
-    _positive("env", cfg.env, ("spawn_start_m", "spawn_margin_m"), strict=False)
-    if not 0 < cfg.env.spawn_end_fraction <= 1:
-        raise SigmarlError(f"env.spawn_end_fraction must be in (0, 1], got {cfg.env.spawn_end_fraction}")
     check_reward(cfg.env.reward)
-    check_vehicle(cfg.env.vehicle)
-    choice("network.activation", cfg.network.activation, Activation)
-    if not cfg.network.hidden or min(cfg.network.hidden) < 1:
-        raise SigmarlError(f"network.hidden must be positive layer sizes, got {cfg.network.hidden}")
+    if not cfg.network.hidden:
+        raise SigmarlError("network.hidden is empty: give the layer sizes, e.g. network.hidden=[256,256]")
     _check_ppo(cfg)
     check_eval(cfg.eval)
     _check_experiment(cfg.tracking.experiment)
 
     tracker_class(cfg.tracking.backend)  # a backend that cannot be imported ends here, not after training
     _check_study(cfg)
-    if cfg.sweep.seeds_per_job < 0:
-        raise SigmarlError(f"sweep.seeds_per_job must be 0 (by device) or a number of seeds, got "
-                           f"{_short(cfg.sweep.seeds_per_job)}")
     return cfg
 
 
@@ -166,47 +133,30 @@ def _check_study(cfg: Config) -> None:
         if len(set(groups)) != 4:
             raise SigmarlError(f"study.interactions.{name}: {pair[0]} and {pair[1]} and their baselines must be "
                                f"four different variants, got {', '.join(groups)}")
-    if any(s < 0 or s > SEED_MAX for s in study.seeds):
-        raise SigmarlError(f"study.seeds must be in 0..{SEED_MAX}, got {study.seeds}")
     if not study.metrics:
         raise SigmarlError("study.metrics is empty: a study's verdicts, plans and composite score need at least "
                            "one metric, e.g. study.metrics=[CR_total]")
     for name in [*study.metrics, *study.margins]:
         metric(name)  # an unknown metric name ends here
-    for name, margin in study.margins.items():
-        if not margin > 0:
-            raise SigmarlError(f"study.margins.{name} must be positive, got {margin}")
-    if study.max_seeds < 2:
-        raise SigmarlError(f"study.max_seeds must be at least 2, got {study.max_seeds}")
 
 
 def check_map(m: MapConfig) -> MapConfig:
     """`m` if its values are usable (a map config read on its own, e.g. by `sigmarl maps list`)."""
     check_finite(m, "map")
-    kind = choice("map.kind", m.kind, MapKind)
-    if kind == "cpm":
-        choice("map.route_set", m.route_set, RouteSet)
-    if kind == "osm" and not m.path:
+    check_ranges(m, "map.")
+    if m.kind == "osm" and not m.path:
         raise SigmarlError("map.kind=osm needs map.path=<file.osm>")
-    if m.lane_width <= 0:
-        raise SigmarlError(f"map.lane_width must be positive, got {m.lane_width}")
     return m
 
 
 def _check_ppo(cfg: Config) -> None:
     ppo = cfg.ppo
-    _positive("ppo", ppo, ("iterations", "frames_per_iteration", "num_envs", "epochs", "minibatch_size",
-                           "checkpoint_every"))
-    _positive("ppo", ppo, ("lr", "lr_final", "clip_epsilon", "max_grad_norm", "gamma", "lmbda",
-                           "entropy_coef", "stop_after"), strict=False)
     if ppo.frames_per_iteration % ppo.num_envs:
         raise SigmarlError(f"ppo.frames_per_iteration={ppo.frames_per_iteration} is not a multiple of "
                            f"ppo.num_envs={ppo.num_envs}")
     if ppo.minibatch_size > ppo.frames_per_iteration:
         raise SigmarlError(f"ppo.minibatch_size={ppo.minibatch_size} exceeds ppo.frames_per_iteration="
                            f"{ppo.frames_per_iteration}")
-    choice("ppo.loss", ppo.loss, Loss)
-    choice("ppo.precision", ppo.precision, Precision)
 
 
 def _check_experiment(name: str) -> None:
@@ -218,11 +168,6 @@ def _check_experiment(name: str) -> None:
         shown = repr(name if len(name) <= 40 else name[:40] + "...")
         raise SigmarlError(f"tracking.experiment={shown} names the folder runs/<experiment>: use {LABEL_RULE}, "
                            "e.g. my-study")
-
-
-def _short(n: int) -> str:
-    """`n`, or its size where printing it would flood the line (or exceed Python's int-to-str limit)."""
-    return str(n) if n.bit_length() < 128 else f"a number of {n.bit_length()} bits"
 
 
 def check_eval(eval_cfg: EvalConfig, scenarios: Sequence[str] | None = None) -> list[str]:

@@ -9,15 +9,17 @@ import math
 from dataclasses import dataclass, fields
 
 from sigmarl.env.params import VEHICLE
+from sigmarl.ranges import ranged
 
 
 @dataclass
 class VehicleConfig:
     """The vehicle's limits (the CPM Lab vehicle's by default)."""
 
-    max_speed: float = VEHICLE.max_speed
+    max_speed: float = ranged(VEHICLE.max_speed, lo=0, lo_open=True, unit="m/s")
     """m/s: the fastest a speed command drives, forwards or backwards"""
-    max_steering_deg: float = math.degrees(VEHICLE.max_steering)
+    max_steering_deg: float = ranged(math.degrees(VEHICLE.max_steering), lo=0, hi=90, lo_open=True, hi_open=True,
+                                     unit="degrees")
     """degrees: the largest steering angle a command reaches, left or right"""
 
     @property
@@ -28,12 +30,3 @@ class VehicleConfig:
 # the keys as the fingerprint names them, at the value every earlier run trained with
 ADDED_KEYS = {f"env.vehicle.{f.name}": f.default for f in fields(VehicleConfig)}
 
-
-def check_vehicle(vehicle: VehicleConfig) -> None:
-    """Limits a vehicle can drive with: a positive top speed, a steering angle below 90 degrees."""
-    from sigmarl.errors import SigmarlError
-
-    if not vehicle.max_speed > 0:
-        raise SigmarlError(f"env.vehicle.max_speed must be positive (m/s), got {vehicle.max_speed}")
-    if not 0 < vehicle.max_steering_deg < 90:
-        raise SigmarlError(f"env.vehicle.max_steering_deg must be in (0, 90) degrees, got {vehicle.max_steering_deg}")

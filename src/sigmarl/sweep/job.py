@@ -11,7 +11,6 @@ import traceback
 from dataclasses import replace
 from pathlib import Path
 
-import torch
 from hydra.core.singleton import Singleton
 from omegaconf import DictConfig
 
@@ -145,7 +144,7 @@ def _evaluate_trained(cfg: Config, run: Run) -> str:
         raise SigmarlError(f"{source.dir} holds no trained run to evaluate (study.checkpoints_from)")
     if trained.fingerprint != cfg.fingerprint:
         raise SigmarlError(f"{source.dir} was trained with another config ({differences(trained, cfg)})")
-    torch.set_num_threads(cfg.threads)
+    use_threads(cfg.threads)
     write_atomic(run.config_file, source.config_file.read_text())
     _, eval_run = evaluate_and_log(source.checkpoint(cfg.eval.checkpoint), cfg, None, progress=False,
                                    rows_file=run.rows_file)

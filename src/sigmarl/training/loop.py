@@ -33,6 +33,7 @@ from sigmarl.run import Run
 from sigmarl.run_owner import check_ours
 from sigmarl.tracking import Tracker, flatten, open_tracker, provenance
 from sigmarl.training import checkpoint as ckpt
+from sigmarl.training.budget import check_fits
 from sigmarl.training.learner import Learner, iteration_seed
 from sigmarl.training.networks import make_actor
 from sigmarl.training.ppo_loss import resolve_precision
@@ -158,6 +159,7 @@ def train_block(cfgs: Sequence[Config], trackers: Sequence[Tracker] | None = Non
     _check_block(cfgs)
     # agents the training map cannot hold are refused before a run folder exists
     check_room(load_map(cfgs[0].map), cfgs[0].env.n_agents)
+    check_fits(cfgs)  # and tensors beyond this machine's memory
     for c in cfgs:  # a folder that is not a run's is refused before its lock or a file is made
         check_ours(Path(c.run_dir))
     for c in cfgs:
