@@ -63,6 +63,8 @@ def _num(x: float) -> str:
 def ranged(default: Any = dataclasses.MISSING, *, factory: Any = dataclasses.MISSING, **limits: Any) -> Any:
     """A dataclass field of this default (or `factory`) whose values must lie in `Range(**limits)`
     (a list's or a dict's: each element)."""
+    if isinstance(default, float):  # a float key's ends print as floats: in [0.0, 1.0] reads as real
+        limits = {k: float(v) if k in ("lo", "hi") else v for k, v in limits.items()}
     metadata = {"range": Range(**limits)}
     if factory is not dataclasses.MISSING:
         return dataclasses.field(default_factory=factory, metadata=metadata)
