@@ -12,7 +12,7 @@ from pathlib import Path
 from sigmarl import __version__
 from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
 from sigmarl.evaluation import import_command
-from sigmarl.paths import add_user_conf_dir, config_files
+from sigmarl.paths import add_user_conf_dir, check_surroundings, config_files, ensure_writable
 from sigmarl.resources import use_threads
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.watch import add_watch_options, cmd_animate
@@ -62,7 +62,7 @@ def cmd_maps(args: argparse.Namespace) -> None:
 
     m = _resolve_map(args.map, args.overrides)
     out = Path(args.out or Path("reports") / "maps" / f"{m.name}.png")
-    out.parent.mkdir(parents=True, exist_ok=True)
+    ensure_writable(out.parent, "use --out <file.png> in another folder")
     save_map_figure(m, out, show_ids=args.ids)
     print(f"wrote {out}\n{width_check(m)}")
 
@@ -132,13 +132,15 @@ def cmd_report(args: argparse.Namespace) -> None:
         raise SigmarlError("--plan reads a results folder: give it with --from FOLDER")
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config
+    from sigmarl.report.command import ReportOptions
 
+    models = None if args.models is None else args.models.split(",")
+    ReportOptions(models=models, animation_steps=args.animations)  # --models '' or --animations -5: one line
     if args.plan:
         from sigmarl.report.seeds.plan import plan_from_folder
 
-        study = compose_config(args.overrides).study
-        print(plan_from_folder([Path(s) for s in args.source], args.models.split(",") if args.models else None,
-                               study=study), end="")
+        print(plan_from_folder([Path(s) for s in args.source], models, study=compose_config(args.overrides).study),
+              end="")
         return
     from sigmarl.tracking.store import missing_store
 
@@ -148,10 +150,9 @@ def cmd_report(args: argparse.Namespace) -> None:
                            "point tracking.tracking_uri=... at the study's store, or use --from FOLDER")
     if args.animations:
         use_threads(cfg.threads)
-    from sigmarl.report.command import ReportOptions, make_report, make_report_from_folder
+    from sigmarl.report.command import make_report, make_report_from_folder
 
-    options = ReportOptions(latex=args.latex, trim=args.trim, compare_paper=args.compare_paper,
-                            models=args.models.split(",") if args.models else None, ci=args.ci,
+    options = ReportOptions(latex=args.latex, trim=args.trim, compare_paper=args.compare_paper, models=models, ci=args.ci,
                             figures=not args.no_figures, animation_steps=args.animations, partial=args.partial,
                             scenarios=list(cfg.eval.scenarios) if _sets(args.overrides, "eval.scenarios",
                                                                         "study.scenarios") else None,
@@ -369,6 +370,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     handle_sigterm()
     try:
+        check_surroundings()
         for folder in args.config_dir:
             add_user_conf_dir(folder)
         rc = print_cfg(args) if getattr(args, "cfg", None) else args.func(args)

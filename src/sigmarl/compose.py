@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
+from pathlib import Path
 
 import yaml
 from hydra import compose, initialize_config_dir
@@ -58,6 +60,7 @@ def compose_seeds(overrides: Sequence[str], seeds: Sequence[int]) -> list[Config
 def _compose(overrides: Sequence[str], config_name: str = "config") -> DictConfig:
     """Hydra's composition of the overrides, its interpolations not yet resolved."""
     register_configs()
+    _check_user_dirs(tuple(user_conf_dirs()))
     # After a Hydra app (the sweep) has run in this process its global state lingers.
     GlobalHydra.instance().clear()
     with _bad_override():
@@ -78,6 +81,16 @@ def _finish(cfg: DictConfig, schema: DictConfig) -> Config:
     return replace(config, fingerprint=fingerprint(config))
 
 
+@functools.cache
+def _check_user_dirs(folders: tuple[Path, ...]) -> None:
+    """Every file of the users' config folders read by sigmarl's checked reader, once a process,
+    before Hydra's own loader sees one: a folder named by $SIGMARL_CONFIG_PATH, not by
+    --config-dir (which checks it), may hold a duplicate key or an alias bomb too."""
+    for folder in folders:
+        if folder.is_dir():
+            check_config_dir(folder)
+
+
 @contextmanager
 def _bad_override() -> Iterator[None]:
     try:
@@ -95,6 +108,7 @@ def _bad_override() -> Iterator[None]:
 def hydra_config(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:
     """Hydra's own settings (the `hydra` node) for these overrides, unresolved as Hydra prints them."""
     register_configs()
+    _check_user_dirs(tuple(user_conf_dirs()))
     GlobalHydra.instance().clear()
     try:
         with initialize_config_dir(config_dir=str(conf_dir()), version_base=None):

@@ -71,3 +71,19 @@ def ensure_writable(folder: Path, what: str) -> None:
             pass
     except OSError as e:
         raise SigmarlError(f"{folder} is not writable ({e.strerror}); {what}") from e
+
+
+def check_surroundings() -> None:
+    """The working folder and $SIGMARL_CACHE are usable, or one line says which is not, before
+    a command starts: Hydra asks for the working folder (gone if it was deleted under the
+    shell), and the store's template cache is a folder (`sigmarl.tracking.store`)."""
+    try:
+        os.getcwd()
+    except OSError as e:
+        raise SigmarlError(f"the working folder cannot be read ({e.strerror}): was it deleted? cd to an "
+                           "existing folder and run again") from None
+    cache = os.environ.get("SIGMARL_CACHE")
+    existing = next((p for p in (Path(cache), *Path(cache).parents) if p.exists()), None) if cache else None
+    if existing is not None and not existing.is_dir():
+        raise SigmarlError(f"SIGMARL_CACHE={cache}: {existing} is a file, not a folder: name a folder, or unset "
+                           "it (default ~/.cache/sigmarl)")

@@ -3,7 +3,8 @@ with one `SigmarlError` line naming the file, what is wrong and the fix (exit co
 a traceback.
 
 - `read_yaml`: any YAML a user writes (a config folder's studies, scenarios, maps); duplicate
-  keys are refused (YAML would keep the last one silently).
+  keys are refused (YAML would keep the last one silently), and so are aliases (a "billion
+  laughs" expands beyond memory).
 - `check_config_dir`: every YAML file of a `--config-dir`, before Hydra composes from it.
 - `read_run_config`: a run folder's `config.yaml`.
 - `read_json`: a JSON record of an expected shape (`seeds_auto.json`, the sweep's plan file,
@@ -41,7 +42,16 @@ METRICS_FIX = "restore it from a copy, or move the run folder away and train aga
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
-    """A safe loader that refuses a key given twice in one mapping."""
+    """A safe loader that refuses a key given twice in one mapping, and any alias (`*name`):
+    a kilobyte of nested aliases (a "billion laughs") expands to more nodes than memory holds
+    once OmegaConf copies each reference, and no config of sigmarl's needs one."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.composer.ComposerError(None, None, f"an alias (*{event.anchor}) is not allowed; write the "
+                                              "value out", event.start_mark)
+        return super().compose_node(parent, index)
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
         seen: set = set()

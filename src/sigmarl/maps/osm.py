@@ -31,6 +31,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -75,16 +76,28 @@ def _read(path: Path) -> _Osm:
         raise MapError(f"{path}: root element is <{root.tag}>, expected <osm>")
     osm = _Osm(path)
     for el in root.findall("node"):
-        osm.nodes[_int(el.get("id"), f"{path}: <node> id")] = el
+        osm.nodes[_unique(el, osm.nodes, path)] = el
     for el in root.findall("way"):
-        wid = _int(el.get("id"), f"{path}: <way> id")
+        wid = _unique(el, osm.ways, path)
         refs = [_int(nd.get("ref"), f"{path}: way {wid} <nd> ref") for nd in el.findall("nd")]
         osm.ways[wid] = (refs, _tags(el))
     for el in root.findall("relation"):
-        rid = _int(el.get("id"), f"{path}: <relation> id")
+        rid = _unique(el, osm.relations, path)
         members = [(m.get("type", ""), m.get("ref", ""), m.get("role", "")) for m in el.findall("member")]
         osm.relations[rid] = (members, _tags(el))
     return osm
+
+
+def _unique(el: ET.Element, seen: dict[int, Any], path: Path) -> int:
+    """The element's id, if no element of its kind had it before (else the last would silently win)."""
+    eid = _int(el.get("id"), f"{path}: <{el.tag}> id")
+    if eid in seen:
+        raise MapError(f"{path}: {el.tag} id {eid} is given twice; each {el.tag} needs its own id")
+    return eid
+
+
+# lat/lon in degrees; local coordinates in m, within 10,000 km of their origin
+_LIMITS = {"lat": 90.0, "lon": 180.0, "local_x": 1e7, "local_y": 1e7}
 
 
 def _float(node: ET.Element, key: str, tags: dict[str, str], where: str) -> float:
@@ -95,6 +108,8 @@ def _float(node: ET.Element, key: str, tags: dict[str, str], where: str) -> floa
         raise MapError(f"{where}: {key}={raw!r} is not a number") from e
     if not np.isfinite(value):
         raise MapError(f"{where}: {key}={raw!r} is not finite")
+    if abs(value) > _LIMITS[key]:  # finite, but its differences to the other nodes would not be
+        raise MapError(f"{where}: {key}={raw!r} is outside [-{_LIMITS[key]:g}, {_LIMITS[key]:g}]")
     return value
 
 

@@ -46,6 +46,15 @@ class ReportOptions:
     scenarios: list[str] | None = None  # only these (eval.scenarios=/study.scenarios= given), in this order
     overrides: tuple[str, ...] = ()  # the report's command line: each variant's column composes with them
 
+    def __post_init__(self) -> None:
+        if not 0 <= self.animation_steps <= MAX_ANIMATION_STEPS:
+            raise SigmarlError(f"--animations takes 1..{MAX_ANIMATION_STEPS} steps, got {self.animation_steps}")
+        if self.models is not None and (not self.models or not all(m.strip() for m in self.models)):
+            raise SigmarlError(f"--models needs comma-separated labels, e.g. --models M0,M4; got {','.join(self.models)!r}")
+
+
+MAX_ANIMATION_STEPS = 10_000  # a GIF of 10,000 frames is already beyond use; an evaluation's are 1200 steps
+
 
 def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions = ReportOptions()) -> Report:
     """Build the report of experiment `cfg.tracking.experiment` from its MLflow store; log it as
@@ -296,9 +305,13 @@ def staged(out_dir: Path) -> Iterator[Path]:
     """A staging folder inside `out_dir` for the report's files, removed afterwards: files are
     moved in only when all are complete, so a report killed half-way (Ctrl-C, SIGTERM) leaves
     the previous files, never a half-written one."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    _remove_stale_staging(out_dir)
-    staging = Path(tempfile.mkdtemp(prefix=f".staging-{os.getpid()}@{socket.gethostname()}-", dir=out_dir))
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        _remove_stale_staging(out_dir)
+        staging = Path(tempfile.mkdtemp(prefix=f".staging-{os.getpid()}@{socket.gethostname()}-", dir=out_dir))
+    except OSError as e:
+        raise SigmarlError(f"{out_dir} is not a folder the report can write ({e.strerror}); "
+                           "use --out <folder>") from None
     try:
         yield staging
     finally:

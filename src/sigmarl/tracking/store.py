@@ -18,6 +18,7 @@ minutes of evaluation:
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import os
@@ -259,7 +260,8 @@ def _save_template(db: Path) -> None:
             dst.close()
         os.replace(tmp, template)  # two processes saving at once each replace it whole
     except (OSError, sqlite3.Error):
-        tmp.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):  # a cache folder that is not one (a file) cannot hold it either
+            tmp.unlink(missing_ok=True)
     _drop_stale_saves(template)
 
 

@@ -243,7 +243,7 @@ def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResu
             for r in runs:
                 r.complete_record(stop)
     except BaseException as e:  # Ctrl-C, or SIGTERM through the CLI's handler, or a failure
-        finish_records(runs, e)
+        finish_records(runs, _explained(e, runs))
     finally:
         bar.close()
         learner.close()
@@ -252,6 +252,15 @@ def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResu
         for r in runs:
             r.record.finish("KILLED")  # ppo.stop_after: stopped on purpose, resumable
     return [_result(r, stop, finished, r.run_id) for r in runs]
+
+
+def _explained(error: BaseException, runs: list[SeedRun]) -> BaseException:
+    """A file error because a run folder vanished under the training, as the one line it is."""
+    gone = [r.run.dir for r in runs if not r.run.dir.is_dir()]
+    if isinstance(error, OSError) and gone:
+        return SigmarlError(f"{gone[0]}: the run folder was deleted during training (its record ends FAILED); "
+                            "train again to start over")
+    return error
 
 
 def _one_iteration(runs: list[SeedRun], learner, ppo: PPOConfig, it: int, stop: int) -> list[float]:
