@@ -31,13 +31,14 @@ from probe_kit import Probe  # noqa: E402  (the folder on sys.path first)
 
 def all_probes() -> list[Probe]:
     import probe_input
+    import probe_limits
     import probe_results
     import probe_runs
     import probe_sweeps
 
-    # every run-folder and sweep probe trains; of the input probes, only those that say so
-    probes = [*probe_input.PROBES, *(replace(p, trains=True) for p in (*probe_runs.PROBES, *probe_sweeps.PROBES)),
-              *probe_results.PROBES]
+    # every run-folder and sweep probe trains; of the input, limit and results probes, only those that say so
+    probes = [*probe_input.PROBES, *probe_limits.PROBES,
+              *(replace(p, trains=True) for p in (*probe_runs.PROBES, *probe_sweeps.PROBES)), *probe_results.PROBES]
     names = [p.name for p in probes]
     assert len(set(names)) == len(names), "two probes share a name"
     return probes

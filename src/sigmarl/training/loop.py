@@ -257,7 +257,7 @@ def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResu
 def _explained(error: BaseException, runs: list[SeedRun]) -> BaseException:
     """A file error because a run folder vanished under the training, as the one line it is."""
     gone = [r.run.dir for r in runs if not r.run.dir.is_dir()]
-    if isinstance(error, OSError) and gone:
+    if isinstance(error, OSError | SigmarlError) and gone:  # the checkpoint writer says "cannot write"
         return SigmarlError(f"{gone[0]}: the run folder was deleted during training (its record ends FAILED); "
                             "train again to start over")
     return error
