@@ -86,7 +86,7 @@ def _gone_working_folder(folder: Path) -> str | None:
 
 def _cache_is_a_file(folder: Path) -> str | None:
     _a_file(folder)
-    done = subprocess.run([*SIGMARL, "train", *SMOKE], cwd=folder, capture_output=True, text=True, timeout=120,
+    done = subprocess.run([*SIGMARL, "train", *STORED], cwd=folder, capture_output=True, text=True, timeout=120,
                           env=env(SIGMARL_CACHE=str(folder / "afile")))
     return one_line(done, "is a file, not a folder")
 
