@@ -136,8 +136,10 @@ def test_h15_reports_options_are_range_checked(option, says, tmp_path, capsys, m
     assert list(tmp_path.iterdir()) == []
 
 
-def test_h11_a_run_folder_deleted_during_training_is_one_line(tmp_path):
-    """The folder is removed once training has written its first iteration's metrics."""
+@pytest.mark.parametrize("made_anew", [False, True])
+def test_h11_a_run_folder_deleted_during_training_is_one_line(tmp_path, made_anew):
+    """The folder is removed once training has written its first iteration's metrics (and,
+    as a checkpoint's write would, made anew: an empty folder is not the run's)."""
     child = subprocess.Popen([sys.executable, "-m", "sigmarl", "train", "ppo=smoke", "threads=1",
                               "tracking.enabled=false", "ppo.iterations=500", "run_dir=runs/x"],
                              cwd=tmp_path, stderr=subprocess.PIPE, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
@@ -147,6 +149,8 @@ def test_h11_a_run_folder_deleted_during_training_is_one_line(tmp_path):
         time.sleep(0.2)
     while (tmp_path / "runs" / "x").exists():  # the training may be writing a file into it meanwhile
         shutil.rmtree(tmp_path / "runs" / "x", ignore_errors=True)
+    if made_anew:
+        (tmp_path / "runs" / "x").mkdir()
     _, err = child.communicate(timeout=120)
     errors = [line for line in err.splitlines() if line.startswith("sigmarl")]
     assert child.returncode == 2, err[-800:]

@@ -229,6 +229,7 @@ def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResu
     label = f"{cfgs[0].model} seed {cfgs[0].seed}" if len(cfgs) == 1 else \
         block_name(cfgs[0].model, [c.seed for c in cfgs])
     bar = Progress(ppo.iterations, label, "train", initial=start)
+    folders = [_identity(r.run.dir) for r in runs]
     try:
         for r in runs:
             r.begin()
@@ -237,13 +238,15 @@ def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResu
             # a resume point before the first iteration: a kill at any later instant resumes
             _checkpoint(runs, learner, 0, [None] * len(runs))
         for it in range(start, stop):
+            if moved := _moved(runs, folders):  # gone, or made anew by a checkpoint's write since
+                raise SigmarlError(_deleted(moved[0]))
             rewards = _one_iteration(runs, learner, ppo, it, stop)
             bar.update(1, reward=" ".join(f"{x:.3f}" for x in rewards), fps=f"{runs[0].history[-1]['frames_per_s']:.0f}")
         if stop == ppo.iterations:
             for r in runs:
                 r.complete_record(stop)
     except BaseException as e:  # Ctrl-C, or SIGTERM through the CLI's handler, or a failure
-        finish_records(runs, _explained(e, runs))
+        finish_records(runs, _explained(e, _moved(runs, folders)))
     finally:
         bar.close()
         learner.close()
@@ -254,13 +257,29 @@ def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResu
     return [_result(r, stop, finished, r.run_id) for r in runs]
 
 
-def _explained(error: BaseException, runs: list[SeedRun]) -> BaseException:
+def _explained(error: BaseException, moved: list[Path]) -> BaseException:
     """A file error because a run folder vanished under the training, as the one line it is."""
-    gone = [r.run.dir for r in runs if not r.run.dir.is_dir()]
-    if isinstance(error, OSError | SigmarlError) and gone:  # the checkpoint writer says "cannot write"
-        return SigmarlError(f"{gone[0]}: the run folder was deleted during training (its record ends FAILED); "
-                            "train again to start over")
+    if isinstance(error, OSError | SigmarlError) and moved:  # the checkpoint writer says "cannot write"
+        return SigmarlError(_deleted(moved[0]))
     return error
+
+
+def _moved(runs: list[SeedRun], folders: list[tuple[int, int] | None]) -> list[Path]:
+    """The run folders that are no longer the ones the training began in."""
+    return [r.run.dir for r, was in zip(runs, folders, strict=True) if _identity(r.run.dir) != was]
+
+
+def _deleted(folder: Path) -> str:
+    return f"{folder}: the run folder was deleted during training (its record ends FAILED); train again to start over"
+
+
+def _identity(folder: Path) -> tuple[int, int] | None:
+    """Which folder `folder` names (None: none): a checkpoint's write makes a deleted one anew."""
+    try:
+        st = folder.stat()
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
 
 
 def _one_iteration(runs: list[SeedRun], learner, ppo: PPOConfig, it: int, stop: int) -> list[float]:
