@@ -150,7 +150,7 @@ def test_h11_a_run_folder_deleted_during_training_is_one_line(tmp_path, made_ane
     while (tmp_path / "runs" / "x").exists():  # the training may be writing a file into it meanwhile
         shutil.rmtree(tmp_path / "runs" / "x", ignore_errors=True)
     if made_anew:
-        (tmp_path / "runs" / "x").mkdir()
+        (tmp_path / "runs" / "x").mkdir(exist_ok=True)  # a checkpoint write may have made it already
     _, err = child.communicate(timeout=120)
     errors = [line for line in err.splitlines() if line.startswith("sigmarl")]
     assert child.returncode == 2, err[-800:]

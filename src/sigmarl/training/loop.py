@@ -12,6 +12,7 @@ one iteration its seeds' checkpoints share (`records`).
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -229,7 +230,7 @@ def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResu
     label = f"{cfgs[0].model} seed {cfgs[0].seed}" if len(cfgs) == 1 else \
         block_name(cfgs[0].model, [c.seed for c in cfgs])
     bar = Progress(ppo.iterations, label, "train", initial=start)
-    folders = [_identity(r.run.dir) for r in runs]
+    folders = [_hold(r.run.dir) for r in runs]
     try:
         for r in runs:
             r.begin()
@@ -250,6 +251,9 @@ def _iterate(cfgs: list[Config], runs: list[SeedRun], learner) -> list[TrainResu
     finally:
         bar.close()
         learner.close()
+        for fd in folders:
+            if fd is not None:
+                os.close(fd)
     finished = stop == ppo.iterations
     if not finished:
         for r in runs:
@@ -264,9 +268,23 @@ def _explained(error: BaseException, moved: list[Path]) -> BaseException:
     return error
 
 
-def _moved(runs: list[SeedRun], folders: list[tuple[int, int] | None]) -> list[Path]:
+def _hold(folder: Path) -> int | None:
+    """The run folder held open while it trains: deleted, it keeps its inode (so a folder made
+    anew at its path has another) and counts no links."""
+    try:
+        return os.open(folder, os.O_RDONLY)
+    except OSError:  # a system that opens no folders: not checked
+        return None
+
+
+def _moved(runs: list[SeedRun], folders: list[int | None]) -> list[Path]:
     """The run folders that are no longer the ones the training began in."""
-    return [r.run.dir for r, was in zip(runs, folders, strict=True) if _identity(r.run.dir) != was]
+    moved = []
+    for r, fd in zip(runs, folders, strict=True):
+        held = os.fstat(fd) if fd is not None else None
+        if held is not None and (held.st_nlink == 0 or _identity(r.run.dir) != (held.st_dev, held.st_ino)):
+            moved.append(r.run.dir)
+    return moved
 
 
 def _deleted(folder: Path) -> str:
