@@ -70,7 +70,7 @@ def _not_ours(path: Path, folder: Path) -> str | None:
     to refuse or repair)."""
     name = path.name
     if name == run.CONFIG_FILE:
-        if (folder / run.RESUME_FILE).is_file():
+        if run.Run(folder).resume_file.is_file():
             return None  # a resume rewrites a damaged config.yaml from its checkpoint
         from sigmarl.readers import read_run_config, read_yaml
 

@@ -96,15 +96,15 @@ def rules_of(overrides: list[str]) -> tuple[str, list[str]]:
 def rows_file_of(out: str | None) -> Path:
     """Where the rows go: `--out` as a .csv file, or evaluation_rows.csv in `--out` as a folder;
     never a training run's folder (whose rows are its own checkpoint's)."""
-    from sigmarl.run import CONFIG_FILE, RESUME_FILE, ROWS_FILE
+    from sigmarl.run import Run
 
     if not out:
         raise SigmarlError("a SigmaRL policy's rows need --out FILE.csv or --out FOLDER (never a run folder)")
     path = Path(out)
-    rows_file = path if path.suffix == ".csv" else path / ROWS_FILE
-    folder = rows_file.parent
-    if (folder / CONFIG_FILE).exists() or (folder / RESUME_FILE).exists():
-        raise SigmarlError(f"{folder} is a training run's folder; write a SigmaRL policy's rows elsewhere (--out)")
+    rows_file = path if path.suffix == ".csv" else Run(path).rows_file
+    held = Run(rows_file.parent)
+    if held.config_file.exists() or held.resume_file.exists():
+        raise SigmarlError(f"{held.dir} is a training run's folder; write a SigmaRL policy's rows elsewhere (--out)")
     return rows_file
 
 

@@ -26,11 +26,11 @@ import pandas as pd
 import torch
 
 from sigmarl import crash
-from sigmarl.ablation import MODELS, obs_strategies
+from sigmarl.ablation import CORNERS, MODELS, obs_strategies
 from sigmarl.config import Config
 from sigmarl.env.paper_rules import COMMAND_LIMIT, rules_label
 from sigmarl.errors import SigmarlError
-from sigmarl.policy_input import CORNERS, neighbours, observation_size
+from sigmarl.policy_input import neighbours, observation_size
 from sigmarl.scenarios import scenario as scenario_of
 
 SOURCE = "SigmaRL"  # the `source` of imported rows (ours have none)
@@ -201,5 +201,5 @@ def evaluate_rows_of(path: Path, target: str, cfg: Config, model: str, label: st
         return rows
     ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use another --out")
     rows = evaluate_imported(path, cfg, model, label, list(cfg.eval.scenarios))
-    _save_rows(rows, rows_file, identity)
+    _save_rows(rows, rows_file, identity, cfg.eval)
     return rows

@@ -76,15 +76,16 @@ class SeedRun:
         """A resume: drop the rows after the resume point (computed again) and send the tracker
         what it missed. A new run: its config.yaml, and no rows."""
         metrics_path = self.run.metrics_file
-        if self.provenance is not None:
-            provenance.add(self.run, self.provenance, self.start)
         if self.state:
             self._repair_config()
             self.record.sync_metrics(metrics_file.truncate(metrics_path, self.start))
-            return
-        write_atomic(self.run.config_file, to_yaml(self.cfg))
-        metrics_path.unlink(missing_ok=True)
-        self.record.log_artifact(self.run.config_file)
+        else:
+            write_atomic(self.run.config_file, to_yaml(self.cfg))
+            metrics_path.unlink(missing_ok=True)
+            self.record.log_artifact(self.run.config_file)
+        # after the resume's checks: a start they refuse leaves the folder as it was
+        if self.provenance is not None:
+            provenance.add(self.run, self.provenance, self.start)
 
     def _repair_config(self) -> None:
         """A resume whose config.yaml a crash or a hand cut, emptied or garbled: the checkpoint
