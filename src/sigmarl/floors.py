@@ -31,7 +31,8 @@ FLOORS: tuple[Floor, ...] = (
            "sigmarl.stats", "sigmarl.floors")),
     Floor("config records", "the structured-config schema and its groups' records; every key's help "
           "line; \"did you mean\"",
-          ("sigmarl.config", "sigmarl.reward_config", "sigmarl.vehicle_config", "sigmarl.rules_config", "sigmarl.config_help",
+          ("sigmarl.config", "sigmarl.reward_config", "sigmarl.vehicle_config", "sigmarl.driver_config",
+           "sigmarl.rules_config", "sigmarl.config_help",
            "sigmarl.suggest")),
     Floor("readers and identity", "the checked readers of damageable files, evaluation rows' checks, "
           "where the config tree is, the scenarios, a run's identity, what makes two evaluations "
