@@ -124,7 +124,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.sweep import run_sweep
 
-    return run_sweep(args.overrides)
+    return run_sweep(args.overrides, check=args.check)
 
 
 def cmd_report(args: argparse.Namespace) -> None:
@@ -313,6 +313,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw = sub.add_parser("sweep", help="train the study's variants x seeds in parallel (Hydra multirun), then evaluate each")
     sw.add_argument("overrides", nargs="*", default=[],
                     help="Hydra overrides, e.g. study=quick seeds=[0,1,2] models=[M0,M4] hydra.launcher.n_jobs=3")
+    sw.add_argument("--check", action="store_true", help="check the study, train nothing: load every map, build every "
+                    "environment, print each job's estimated compute (timed here) and memory; writes nothing")
     sw.set_defaults(func=cmd_sweep)
     rp = _add_report(sub)
     for sub_parser in (train, ev, sw, rp):

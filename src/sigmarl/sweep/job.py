@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import re
 import sys
 import traceback
@@ -53,6 +54,7 @@ def run_job(cfg: DictConfig | Config) -> str:
         print(f"sigmarl sweep: job failed: {e}", file=sys.stderr)
         return "failed"
     runs = [Run(Path(c.run_dir)) for c in cfgs]
+    emit(f"sigmarl sweep: job {', '.join(str(r.dir) for r in runs)} started in process {os.getpid()}")
     try:
         with contextlib.ExitStack() as held:  # one writer per run folder, for the whole job
             for run in runs:
