@@ -74,7 +74,8 @@ REPORT_FLOORS: tuple[Floor, ...] = (
     Floor("seam", "`Section`, `Draft`, `BuildOptions`", ("sigmarl.report.draft",)),
     Floor("sections", "each group's sections", ("sigmarl.report.sections",)),
     Floor("build and command", "`build_report` and its registry of sections, the command, the package's "
-          "own names (`__init__.py`)", ("sigmarl.report.build", "sigmarl.report.command", "sigmarl.report")),
+          "own names (`__init__.py`)", ("sigmarl.report.build", "sigmarl.report.command", "sigmarl.report.console",
+          "sigmarl.report")),
 )
 
 
