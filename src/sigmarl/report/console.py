@@ -39,12 +39,11 @@ def _headline_table(report: Draft) -> list[str]:
     if summary is None or not len(summary):
         return ["(no rows to tabulate)"]
     rows = summary[summary["metric"] == HEADLINE]
-    scale = BY_NAME[HEADLINE].scale
     models = [m for m in report.models if m in set(rows["model"])] or list(dict.fromkeys(rows["model"]))
     scenarios = list(dict.fromkeys(rows["scenario"]))
     room = MAX_LINES - _OTHER_LINES - 2
     shown, rest = scenarios[:room], scenarios[room:]
-    means = {(r.scenario, r.model): r.mean * scale for r in rows.itertuples()}
+    means = {(r.scenario, r.model): r.mean for r in rows.itertuples()}  # in the table's units (%)
     table = ["| scenario | " + " | ".join(models) + " |", "|---|" + "---:|" * len(models)]
     for name in shown:
         cells = [f"{means[(name, m)]:.{TABLE_DIGITS}f}" if (name, m) in means else "–" for m in models]
