@@ -41,12 +41,14 @@ ADDED_KEYS = {f"driver.{f.name}": f.default for f in fields(DriverConfig)}
 
 def check_driver(driver: DriverConfig) -> None:
     """A driver that can drive: a known kind and positive distances, speeds and rates."""
+    import difflib
+
     from sigmarl.errors import SigmarlError
-    from sigmarl.suggest import did_you_mean
 
     if driver.kind not in DRIVERS:
+        close = difflib.get_close_matches(driver.kind, DRIVERS, n=1)  # not sigmarl.suggest: it imports the config
         raise SigmarlError(f"driver.kind must be one of {', '.join(DRIVERS)}, got {driver.kind!r}"
-                           f"{did_you_mean(driver.kind, DRIVERS)}")
+                           + (f" (did you mean {close[0]}?)" if close else ""))
     for f in fields(driver):
         value = getattr(driver, f.name)
         if f.name != "kind" and not value > 0:
