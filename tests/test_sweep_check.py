@@ -72,5 +72,5 @@ def test_a_good_study_is_listed_with_its_costs_writing_nothing(tmp_path, monkeyp
     rows = [line.split() for line in out.splitlines() if line.startswith("  M0/seed")]
     assert [r[0] for r in rows] == ["M0/seed0", "M0/seed1"]
     assert all(r[2] == "s" and float(r[1]) > 0 for r in rows), rows  # a measured training time
-    assert "memory: about" in out and "source: timed here on" in out
+    assert "memory: about" in out and "source: CPU time measured here on" in out
     assert _tree(tmp_path) == before

@@ -23,6 +23,12 @@ from sigmarl.sweep.plan import SweepPlan, plan_sweep
 TEST_STEPS = 5  # timed steps of each scenario's test environment
 
 
+def _clock() -> float:
+    """This process's CPU seconds: a job's compute on a free core, whatever else loads the
+    machine now (on a GPU, the host's share only: an estimate for a CPU study)."""
+    return time.process_time()
+
+
 @dataclass
 class Costs:
     iteration_s: dict[str, float]  # training fingerprint -> seconds per iteration
@@ -73,7 +79,7 @@ def _guarded(what: str, fn, *args) -> float:
 
 
 def _time_scenario(cfg: Config, name: str) -> float:
-    """Seconds per step of the scenario's test environment (eval.n_sims simulations) standing still."""
+    """CPU seconds per step of the scenario's test environment (eval.n_sims simulations) standing still."""
     import torch
 
     from sigmarl.env.factory import make_scenario, step_scenario
@@ -86,14 +92,14 @@ def _time_scenario(cfg: Config, name: str) -> float:
                        map_cfg=scenario_map_config(name), seed=cfg.eval.seed)
     still = torch.zeros(cfg.eval.n_sims, n_agents, 2)
     step_scenario(sc, still)  # warm-up
-    start = time.perf_counter()
+    start = _clock()
     for _ in range(TEST_STEPS):
         step_scenario(sc, still)
-    return (time.perf_counter() - start) / TEST_STEPS
+    return (_clock() - start) / TEST_STEPS
 
 
 def _time_iteration(cfg: Config) -> float:
-    """Seconds of one training iteration: collection and GAE timed whole, one epoch of the
+    """CPU seconds of one training iteration: collection and GAE timed whole, one epoch of the
     update timed and counted ppo.epochs times."""
     import torch
 
@@ -102,11 +108,11 @@ def _time_iteration(cfg: Config) -> float:
 
     learner = Learner(cfg, [cfg.seed], torch.device(cfg.device))
     try:
-        start = time.perf_counter()
+        start = _clock()
         data = learner.advantage(collect(learner.batches))
-        collected = time.perf_counter()
+        collected = _clock()
         update(data, learner.loss, learner.optimiser, replace(cfg.ppo, epochs=1))
-        epoch = time.perf_counter() - collected
+        epoch = _clock() - collected
     finally:
         learner.close()
     return collected - start + cfg.ppo.epochs * epoch
@@ -127,13 +133,13 @@ def report_lines(plan: SweepPlan, configs: dict[str, Config], costs: Costs, took
         lines.append(f"  {job.key:<{width}}  {_duration(train) if train else 'none':>9}  {_duration(evaluate):>9}")
     workers = _workers(plan)
     lines.append(f"in all: {_duration(total)} of compute; with {workers} worker(s) at once about "
-                 f"{_duration(total / min(workers, len(plan.units)))} if the jobs share them evenly")
+                 f"{_duration(total / min(workers, len(plan.units)))} if each has a core of its own")
     lines.append(f"memory: about {costs.peak_mib:.0f} MiB a worker (this check's peak, having built and run one "
                  "training iteration and every scenario)")
-    lines.append(f"source: timed here on {_cpu()} ({configs[plan.jobs[0].label].threads} thread(s), under the "
-                 f"machine's present load): one training iteration per training config (collection and GAE, "
-                 f"one update epoch counted ppo.epochs times) and {TEST_STEPS} steps of each scenario; "
-                 "the policy's own evaluation forward passes are not counted")
+    lines.append(f"source: CPU time measured here on {_cpu()} ({configs[plan.jobs[0].label].threads} thread(s)): "
+                 f"one training iteration per training config (collection and GAE, one update epoch counted "
+                 f"ppo.epochs times) and {TEST_STEPS} steps of each scenario; the policy's own evaluation "
+                 "forward passes are not counted")
     return lines
 
 
