@@ -106,7 +106,7 @@ def test_a_rule_based_variant_is_evaluated_once_and_never_trained(tmp_path):
     assert [j.key for j in plan.jobs] == ["RB/seed3"]  # deterministic: one run, whatever the seeds
     from sigmarl.compose import compose_config
 
-    assert run_job(compose_config([*overrides, "model=RB", "seed=3"])) == "done"
+    assert run_job(compose_config(plan.jobs[0].overrides)) == "done"
     run = tmp_path / "RB" / "seed3"
     assert sorted(p.name for p in run.iterdir() if not p.name.startswith(".")) == [
         "config.yaml", "evaluated.txt", "evaluation.json", "evaluation_rows.csv"]  # no checkpoint, no curve
