@@ -50,7 +50,7 @@ def evaluate_driver(cfg: Config, run: Run, tracker: Tracker, progress: bool = Fa
     rows = driver_rows(cfg, progress)
     run.dir.mkdir(parents=True, exist_ok=True)
     write_atomic(run.config_file, to_yaml(cfg))
-    _save_rows(rows, run.rows_file, {"eval_key": eval_key(cfg.eval), "checkpoint_sha256": CHECKPOINT})
+    _save_rows(rows, run.rows_file, {"eval_key": eval_key(cfg.eval), "checkpoint_sha256": CHECKPOINT}, cfg.eval)
     tags = {"model": cfg.model, "obs": obs_strategies(cfg.obs), "study": cfg.study.name,
             "fingerprint": fingerprint(cfg), "seed": str(cfg.seed), "train_run_id": "",
             "checkpoint": CHECKPOINT, "eval_key": eval_key(cfg.eval), "driver": cfg.driver.kind}
