@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 
 from sigmarl.report.exports.figures import (
+    ProfileAxis,
     plot_heatmap,
     plot_performance_profiles,
     profile_axis,
@@ -17,20 +18,29 @@ from sigmarl.report.exports.figures import (
 
 
 @pytest.mark.parametrize(("rates", "axis"), [
-    ([0.0, 0.08, 40.0], (0.05, 42.0)),  # the round number at or below the smallest rate: 5e-2
-    ([0.0, 0.3, 2.0], (0.2, 2.1)),
-    ([0.0, 0.0], (0.1, 1.0)),  # nothing collided: a default axis, not a division by zero
-    ([0.5], (0.0525, 0.525)),  # one value: the linear part held to a tenth of the axis
+    # 0.08 .. 40 %: a log axis from the round number at or below the smallest rate (0.05) to the
+    # one at or above the largest (50, from 40 x 1.02), its decades between as ticks (0.1 is
+    # left out: within 3x of 0.05, its label would touch)
+    ([0.0, 0.08, 40.0], ProfileAxis(True, 0.05, 50.0, (0.0, 0.05, 1.0, 10.0, 50.0))),
+    ([0.0, 0.3, 18.0], ProfileAxis(True, 0.2, 20.0, (0.0, 0.2, 1.0, 10.0, 20.0))),
+    # 0.3 .. 2 %: less than 20x apart, linear; steps of 0.5 (2.04 / 5 = 0.41 rounded up), to 2.5
+    ([0.0, 0.3, 2.0], ProfileAxis(False, 2.5, 2.5, (0.0, 0.5, 1.0, 1.5, 2.0, 2.5))),
+    ([0.0, 0.0], ProfileAxis(False, 1.0, 1.0, (0.0, 0.2, 0.4, 0.6, 0.8, 1.0))),  # nothing collided
+    ([0.5], ProfileAxis(False, 0.6, 0.6, (0.0, 0.2, 0.4, 0.6))),  # one value: 0.51 / 5 -> steps of 0.2
 ])
 def test_profile_axis_from_the_rates(rates, axis):
-    assert profile_axis(np.array(rates)) == pytest.approx(axis)
+    got = profile_axis(np.array(rates))
+    assert (got.log, got.linthresh, got.top) == (axis.log, pytest.approx(axis.linthresh), pytest.approx(axis.top))
+    assert got.ticks == pytest.approx(axis.ticks)
 
 
 def test_thresholds_follow_the_axis():
-    taus = profile_thresholds(0.05, 42.0)
-    assert taus[0] == 0 and taus[-1] == pytest.approx(42.0) and 0.05 in taus
+    taus = profile_thresholds(ProfileAxis(True, 0.05, 50.0, (0.0, 0.05, 1.0, 10.0, 50.0)))
+    assert taus[0] == 0 and taus[-1] == pytest.approx(50.0) and 0.05 in taus
     assert np.all(np.diff(taus) > 0)
     assert np.sum(taus <= 0.05) == 21  # even steps up to the linear threshold
+    linear = profile_thresholds(ProfileAxis(False, 2.5, 2.5, (0.0, 0.5, 1.0, 1.5, 2.0, 2.5)))
+    assert linear[-1] == pytest.approx(2.5) and np.allclose(np.diff(linear), 2.5 / 200)
 
 
 def _rows(scenarios: list[str], models: list[str]) -> pd.DataFrame:

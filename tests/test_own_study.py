@@ -66,7 +66,10 @@ def test_a_study_from_an_outside_folder_runs_through_sweep_and_report(own, monke
     assert wide["fingerprint"] != saved["fingerprint"]
 
     # the sweep's closing hint finds the runs as typed, without SIGMARL_CONFIG_PATH in the shell
-    hint = [line for line in capsys.readouterr().out.splitlines() if line.startswith("next: ")]
+    out = capsys.readouterr().out
+    hint = [line for line in out.splitlines() if line.startswith("next: ")]
+    # after its first line the sweep says its workers are starting (no silence while they import)
+    assert out.splitlines()[1].startswith("sigmarl sweep: starting "), out
     words = shlex.split(hint[0].removeprefix("next: "))
     assert words[:4] == ["sigmarl", "--config-dir", "my_conf", "report"] and "study=tiny" in words, hint
     monkeypatch.delenv("SIGMARL_CONFIG_PATH")

@@ -207,3 +207,27 @@ def test_a_report_of_other_columns_or_another_baseline_keeps_the_studys_folder(t
     assert main([*common, "--models", "M4,M0", "study.baseline=M4"]) == 0
     assert sorted(p.name for p in (tmp_path / "reports").iterdir()) == [
         "results", "results_baseline-M4", "results_baseline-M4_models-M4+M0"]
+
+
+def test_the_console_report_is_short_and_verbose_prints_the_full_text(tmp_path, capsys):
+    # the short report: Table I's headline (CR_total, % of steps) as the table computes it, the
+    # verdict counts as verdicts.csv holds them, where the files are; at most 40 lines
+    assert report(tmp_path, "short", "--no-figures") == 0
+    short = capsys.readouterr().out.rstrip("\n").splitlines()
+    assert len(short) <= 40, len(short)
+    rows = read_results(FIXTURE).rows
+    seed_means = rows.groupby(["scenario", "model", "seed"])["CR_total"].mean().groupby(["scenario", "model"]).mean()
+    for scenario in PAPER_SCENARIOS:
+        line = next(x for x in short if x.startswith(f"| {scenario} |"))
+        cells = [c.strip() for c in line.strip("|").split("|")[1:]]
+        assert cells == [f"{100 * seed_means[(scenario, m)]:.2f}" for m in ("M0", "M4")], line
+    verdicts = pd.read_csv(tmp_path / "short" / "verdicts.csv")["verdict"].value_counts()
+    counts = next(x for x in short if x.startswith("verdicts,"))
+    for verdict, n in verdicts.items():
+        assert f"{n} {verdict}" in counts
+    assert any(str(tmp_path / "short") in x for x in short)
+    # --verbose: the whole table's text as before, its notes and the verdicts
+    assert report(tmp_path, "long", "--no-figures", "--verbose") == 0
+    full = capsys.readouterr().out
+    assert (tmp_path / "long" / "table.md").read_text(encoding="utf-8").strip() in full
+    assert len(full.splitlines()) > 40

@@ -16,7 +16,9 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 ROWS = sorted(ROOT.glob("results/*/*/seed*/evaluation_rows.csv"))
 # and the paper's own policies evaluated (`M<k>-ITSC24/<rules>/`): no run config of ours
-LABELLED = [*ROWS, *sorted(ROOT.glob("results/paper-policies/*/*/evaluation_rows.csv"))]
+# (the rule-based driver's rows aside: it observes nothing, so its obs flags name no paper model)
+LABELLED = [*(p for p in ROWS if p.parts[-4] != "rule-based"),
+            *sorted(ROOT.glob("results/paper-policies/*/*/evaluation_rows.csv"))]
 TOY = "own_heading"
 
 

@@ -124,7 +124,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.sweep import run_sweep
 
-    return run_sweep(args.overrides)
+    return run_sweep(args.overrides, check=args.check)
 
 
 def cmd_report(args: argparse.Namespace) -> None:
@@ -162,15 +162,9 @@ def cmd_report(args: argparse.Namespace) -> None:
         report = make_report_from_folder([Path(s) for s in args.source], cfg, out_dir, options)
     else:
         report = make_report(cfg, out_dir, options)
-    print(report.markdown)  # the table's notes are part of it
-    if report.statistics:
-        print(report.statistics)
-    for key in ("training_md", "curve_verdicts_md"):
-        if key in report.paths:
-            print(report.paths[key].read_text(encoding="utf-8"))
-    if report.verdicts_markdown:
-        print(report.verdicts_markdown)
-    print("wrote " + ", ".join(str(p) for p in report.paths.values()))
+    from sigmarl.report.console import console_text
+
+    print(console_text(report, verbose=args.verbose))  # short; --verbose: the table's text, its notes, ...
 
 
 def _sets(overrides: Sequence[str], *keys: str) -> bool:
@@ -313,6 +307,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw = sub.add_parser("sweep", help="train the study's variants x seeds in parallel (Hydra multirun), then evaluate each")
     sw.add_argument("overrides", nargs="*", default=[],
                     help="Hydra overrides, e.g. study=quick seeds=[0,1,2] models=[M0,M4] hydra.launcher.n_jobs=3")
+    sw.add_argument("--check", action="store_true", help="check the study, train nothing: load every map, build every "
+                    "environment, print each job's estimated compute (timed here) and memory; writes nothing")
     sw.set_defaults(func=cmd_sweep)
     rp = _add_report(sub)
     for sub_parser in (train, ev, sw, rp):
@@ -353,6 +349,8 @@ def _add_report(sub) -> argparse.ArgumentParser:
                          "report is refused. A variant never run (no folder, no rows) is a note either way")
     rp.add_argument("--animations", type=int, nargs="?", const=200, default=0, metavar="STEPS",
                     help="also one GIF per scenario of the study's baseline driving (default 200 steps)")
+    rp.add_argument("--verbose", action="store_true", help="print the full text (table, notes, statistics, verdicts), "
+                    "not the short report (Table I's headline, the verdict counts, where the files are)")
     rp.add_argument("--plan", action="store_true",
                     help="with --from: print each comparison's verdict and the seeds a decision needs, nothing else")
     rp.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. study=quick or tracking.experiment=NAME")

@@ -24,6 +24,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from sigmarl.ablation import PAPER_SCENARIOS, model_label, strategy_flags
+from sigmarl.driver_config import DriverConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.ranges import ranged
 from sigmarl.reward_config import RewardConfig
@@ -259,6 +260,7 @@ class Config:
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     eval: EvalConfig = field(default_factory=EvalConfig)
     rules: RulesConfig = field(default_factory=RulesConfig)
+    driver: DriverConfig = field(default_factory=DriverConfig)
     seed: int = ranged(0, lo=0, hi=SEED_MAX)
     """The training seed (0..2**32-1)."""
     device: str = ranged("cpu", pattern=r"(cpu|cuda)(:[0-9]+)?", form="cpu, cuda or cuda:N (N: a GPU's number)")

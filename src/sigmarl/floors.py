@@ -31,7 +31,8 @@ FLOORS: tuple[Floor, ...] = (
            "sigmarl.stats", "sigmarl.floors")),
     Floor("config records", "the structured-config schema and its groups' records; every key's help "
           "line; \"did you mean\"",
-          ("sigmarl.config", "sigmarl.reward_config", "sigmarl.vehicle_config", "sigmarl.rules_config", "sigmarl.config_help",
+          ("sigmarl.config", "sigmarl.reward_config", "sigmarl.vehicle_config", "sigmarl.driver_config",
+           "sigmarl.rules_config", "sigmarl.config_help",
            "sigmarl.suggest")),
     Floor("readers and identity", "the checked readers of damageable files, evaluation rows' checks, "
           "where the config tree is, the scenarios, a run's identity, what makes two evaluations "
@@ -73,7 +74,8 @@ REPORT_FLOORS: tuple[Floor, ...] = (
     Floor("seam", "`Section`, `Draft`, `BuildOptions`", ("sigmarl.report.draft",)),
     Floor("sections", "each group's sections", ("sigmarl.report.sections",)),
     Floor("build and command", "`build_report` and its registry of sections, the command, the package's "
-          "own names (`__init__.py`)", ("sigmarl.report.build", "sigmarl.report.command", "sigmarl.report")),
+          "own names (`__init__.py`)", ("sigmarl.report.build", "sigmarl.report.command", "sigmarl.report.console",
+          "sigmarl.report")),
 )
 
 

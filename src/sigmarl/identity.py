@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from sigmarl.ablation import later_flags
 from sigmarl.config import as_dict, flatten
+from sigmarl.driver_config import ADDED_KEYS as DRIVER_KEYS
 from sigmarl.errors import SigmarlError
 from sigmarl.reward_config import ADDED_KEYS as REWARD_KEYS
 from sigmarl.rules_config import ADDED_KEYS as RULES_KEYS
@@ -26,7 +27,7 @@ from sigmarl.vehicle_config import ADDED_KEYS as VEHICLE_KEYS
 if TYPE_CHECKING:
     from sigmarl.config import Config
 
-TRAINING_GROUPS = ("map", "obs", "env", "network", "ppo", "rules")
+TRAINING_GROUPS = ("map", "obs", "env", "network", "ppo", "rules", "driver")
 # names only, or what neither changes the policy nor the numbers it is trained on
 NOT_TRAINING = frozenset({"obs.preset", "map.name", "ppo.checkpoint_every", "ppo.stop_after"})
 # Settings added after fingerprints were first recorded, each with the value every earlier run
@@ -34,12 +35,14 @@ NOT_TRAINING = frozenset({"obs.preset", "map.name", "ppo.checkpoint_every", "ppo
 # fingerprint (and split a published study in two); at any other value it counts. A new
 # training setting goes here with its default; an observation strategy declared after the
 # paper's five is here by its declaration (off).
-ADDED_LATER: dict[str, Any] = {"network.centralised_critic": True, **REWARD_KEYS, **VEHICLE_KEYS, **RULES_KEYS}
+ADDED_LATER: dict[str, Any] = {"network.centralised_critic": True, **REWARD_KEYS, **VEHICLE_KEYS, **RULES_KEYS,
+                               **DRIVER_KEYS}
 
 
 def added_later() -> dict[str, Any]:
     """ADDED_LATER and the later observation strategies, as declared now."""
     return {**ADDED_LATER, **{f"obs.{flag}": off for flag, off in later_flags().items()}}
+
 # a label names a folder and a table column: letters, digits, '.', '_', '-'
 _LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Literal, get_args
 
 from sigmarl.config import Config, EvalConfig, MapConfig
+from sigmarl.driver_config import check_driver
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import LABEL_RULE, check_label, is_label
 from sigmarl.metrics import metric
@@ -65,6 +66,7 @@ def check(cfg: Config) -> Config:
     check_reward(cfg.env.reward)
     if not cfg.network.hidden:
         raise SigmarlError("network.hidden is empty: give the layer sizes, e.g. network.hidden=[256,256]")
+    check_driver(cfg.driver)
     _check_ppo(cfg)
     check_eval(cfg.eval)
     _check_experiment(cfg.tracking.experiment)

@@ -104,7 +104,8 @@ def rollout_steps(policy, cfg: Config, scenario: str, n_sims: int, steps: int, s
     sc = make_scenario(cfg, num_envs=n_sims, n_agents=n_agents, mode="test", map_cfg=scenario_map_config(scenario),
                        seed=seed, device=device)
     sc.compute_reward = False
-    act = as_tensor_policy(policy)
+    # a driver that reads the scenario's state (the rule-based one) is bound to it
+    act = policy.bind(sc) if hasattr(policy, "bind") else as_tensor_policy(policy)
     sc.reset_world_at(None)  # the rollout's own reset, as env.reset() does
     obs = sc.current_observation()
     for _ in range(steps):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import re
 import sys
 import traceback
@@ -53,6 +54,7 @@ def run_job(cfg: DictConfig | Config) -> str:
         print(f"sigmarl sweep: job failed: {e}", file=sys.stderr)
         return "failed"
     runs = [Run(Path(c.run_dir)) for c in cfgs]
+    emit(f"sigmarl sweep: job {', '.join(str(r.dir) for r in runs)} started in process {os.getpid()}")
     try:
         with contextlib.ExitStack() as held:  # one writer per run folder, for the whole job
             for run in runs:
@@ -74,6 +76,8 @@ def _train_and_evaluate(cfgs: list[Config], runs: list[Run]) -> str:
         use_threads(threads)  # training and this job's evaluation
         if cfgs[0].study.checkpoints_from:  # a study that evaluates trained runs, not trains them
             return _worst([_one_seed(_evaluate_trained, c, r) for c, r in zip(cfgs, runs, strict=True)])
+        if cfgs[0].driver.kind != "mappo":  # a driver that needs no training: evaluated at once
+            return _worst([_one_seed(_evaluate_driver, c, r) for c, r in zip(cfgs, runs, strict=True)])
         trackers = [open_tracker(c) for c in cfgs]  # one connection per seed, for its training and evaluation
         results = train_block(cfgs, trackers)  # one seed: a block of one
     except BaseException as e:
@@ -149,6 +153,14 @@ def _evaluate_trained(cfg: Config, run: Run) -> str:
     _, eval_run = evaluate_and_log(source.checkpoint(cfg.eval.checkpoint), cfg, None, progress=False,
                                    rows_file=run.rows_file)
     run.mark_done(eval_run)
+    return "done"
+
+
+def _evaluate_driver(cfg: Config, run: Run) -> str:
+    """Evaluate the rule-based driver into the job's run folder (nothing to train)."""
+    from sigmarl.evaluation.driven import evaluate_driver
+
+    run.mark_done(evaluate_driver(cfg, run, open_tracker(cfg)))
     return "done"
 
 

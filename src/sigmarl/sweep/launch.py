@@ -31,8 +31,13 @@ from sigmarl.tracking.records import evaluation_runs
 PLANS = Path("multirun") / ".plans"  # in the sweep's folder: every job reads its entry there
 
 
-def run_sweep(user_overrides: Sequence[str]) -> int:
-    """Plan, then run the multirun in this process (Hydra's entry point), then summarise."""
+def run_sweep(user_overrides: Sequence[str], check: bool = False) -> int:
+    """Plan, then run the multirun in this process (Hydra's entry point), then summarise;
+    `check`: plan, build and time everything instead, and write nothing (`sweep.check`)."""
+    if check:
+        from sigmarl.sweep.check import check_sweep
+
+        return check_sweep(list(user_overrides))
     return launch(plan_sweep(user_overrides))
 
 
@@ -58,6 +63,8 @@ def launch(plan: SweepPlan) -> int:
         where = f"multirun/{plan.config.tracking.experiment}" if plan.config is not None else "multirun"
         print(f"sigmarl sweep: {len(keys)} job(s) ({', '.join(keys[:6])}{' ...' if len(keys) > 6 else ''}); "
               f"each job's log in {where}/<job>/", flush=True)
+        print(f"sigmarl sweep: starting {_workers(plan)} worker process(es); each imports torch and the simulator "
+              "before its first line (tens of seconds)", flush=True)
         with tracker.study(added) if tracker is not None else nullcontext(), _launcher_errors_raised():
             main = hydra.main(config_path=str(conf_dir()), config_name="config", version_base=None)(run_job)
             main()
@@ -74,6 +81,12 @@ def launch(plan: SweepPlan) -> int:
     finally:
         sys.argv = argv
     return summarise(plan)
+
+
+def _workers(plan: SweepPlan) -> str:
+    """How many worker processes the launcher starts, as the plan sets it (else: as it chooses)."""
+    found = [h.split("=", 1)[1] for h in plan.hydra if override_key(h) == "hydra.launcher.n_jobs"]
+    return found[-1] if found else "its"
 
 
 @contextmanager

@@ -180,6 +180,8 @@ def _variant_jobs(label: str, overrides: list[str], variant: list[str], seeds: l
         configs = compose_seeds(overrides, seeds) if seeds else []
     except SigmarlError as e:
         raise SigmarlError(f"variant {label}: {e}") from e
+    if configs and configs[0].driver.kind != "mappo":  # deterministic and untrained: one run, the first seed
+        seeds, configs = seeds[:1], configs[:1]
     jobs = []
     for seed, cfg in zip(seeds, configs, strict=True):
         check_variant(cfg, check_eval(cfg.eval), label)  # before training, not after it

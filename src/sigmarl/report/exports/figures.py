@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -134,25 +135,54 @@ PANELS_PER_ROW = 3
 HEATMAP_COLUMNS = 7
 
 
-def profile_axis(values: np.ndarray) -> tuple[float, float]:
-    """(linear threshold, top) of a profile's τ axis, from the collision rates (%) it shows: linear
-    up to a round number at or below the smallest non-zero rate, logarithmic above, up to the largest rate. A
-    fixed axis pressed a study of 5-40 % collisions against its right edge."""
+@dataclass(frozen=True)
+class ProfileAxis:
+    """A profile's τ axis (collision rates, %): linear, or symlog where the rates span more than
+    LOG_SPREAD (linear up to `linthresh`, a round number at or below the smallest non-zero
+    rate); its right end `top` and its `ticks` round numbers."""
+
+    log: bool
+    linthresh: float
+    top: float
+    ticks: tuple[float, ...]
+
+
+LOG_SPREAD = 20.0  # the largest rate over the smallest non-zero one above which the axis is logarithmic
+_ROUND = (1.0, 2.0, 5.0)  # the round numbers of a log axis, per decade
+_STEPS = (1.0, 2.0, 2.5, 5.0)  # a linear axis' tick steps, per decade
+
+
+def _round(x: float, up: bool, steps: tuple[float, ...] = _ROUND) -> float:
+    """The round number (steps x 10^k) at or above (up) / at or below x > 0."""
+    decade = 10.0 ** np.floor(np.log10(x))
+    options = [f * decade * k for k in (0.1, 1.0, 10.0) for f in steps]
+    return float(min(o for o in options if o >= x * (1 - 1e-9)) if up else max(o for o in options if o <= x * (1 + 1e-9)))
+
+
+def profile_axis(values: np.ndarray) -> ProfileAxis:
+    """The τ axis for the collision rates (%) a panel shows: every curve spread across it. A
+    fixed axis pressed a study of 5-40 % collisions against its right edge; a linear part as
+    wide as a decade left half of a panel empty."""
     positive = values[np.isfinite(values) & (values > 0)]
-    if not positive.size:
-        return 0.1, 1.0
-    top = float(positive.max()) * 1.05
-    smallest = float(positive.min())
-    decade = 10.0 ** np.floor(np.log10(smallest))
-    linthresh = max(f * decade for f in (1, 2, 5) if f * decade <= smallest)  # a round number at or below it
-    return float(min(max(linthresh, 1e-3), top / 10)), top
+    largest = float(positive.max()) * 1.02 if positive.size else 1.0
+    if not positive.size or largest / float(positive.min()) <= LOG_SPREAD:
+        step = _round(largest / 5, up=True, steps=_STEPS)  # four to six ticks
+        top = round(float(np.ceil(largest / step - 1e-9) * step), 10)
+        ticks = np.round(np.arange(0.0, top + step / 2, step), 10)
+        return ProfileAxis(False, top, top, tuple(float(t) for t in ticks))
+    top = _round(largest, up=True)
+    linthresh = _round(min(float(positive.min()), top / 10), up=False)
+    decades = [10.0 ** k for k in range(-4, 4) if 3 * linthresh <= 10.0 ** k and 1.5 * 10.0 ** k <= top]
+    return ProfileAxis(True, linthresh, top, (0.0, linthresh, *decades, top))
 
 
-def profile_thresholds(linthresh: float, top: float) -> np.ndarray:
-    """Thresholds (%) from 0 to `top`, spaced as the axis is drawn: even steps up to `linthresh`,
-    then evenly on a log scale."""
-    linear = np.linspace(0.0, min(top, linthresh), 21)
-    return np.unique(np.concatenate([linear, np.geomspace(linthresh, top, 80) if top > linthresh else []]))
+def profile_thresholds(axis: ProfileAxis) -> np.ndarray:
+    """Thresholds (%) from 0 to the axis' end, spaced as the axis is drawn: even steps (up to
+    `linthresh` on a log axis), then evenly on a log scale."""
+    if not axis.log:
+        return np.linspace(0.0, axis.top, 201)
+    linear = np.linspace(0.0, axis.linthresh, 21)
+    return np.unique(np.concatenate([linear, np.geomspace(axis.linthresh, axis.top, 80)]))
 
 
 def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path) -> Path:
@@ -170,8 +200,8 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
         chosen = scenarios if panel == "all scenarios" else [panel]
         shown = [np.concatenate([np.ravel(g) for g in v]) for (m, s), v in values.items()
                  if s in chosen and m in models]
-        linthresh, top = profile_axis(np.concatenate(shown) if shown else np.array([]))
-        taus = profile_thresholds(linthresh, top)
+        axis = profile_axis(np.concatenate(shown) if shown else np.array([]))
+        taus = profile_thresholds(axis)
         for model in models:
             per_scenario = {s: values[(model, s)] for s in chosen if (model, s) in values}
             if not per_scenario:
@@ -179,11 +209,10 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
             point, lo, up = scenario_profiles(per_scenario, taus, PROFILE_BOOT, f"{model}|{panel}")
             line = ax.step(taus, point, where="post", label=model, lw=1.1)[0]
             ax.fill_between(taus, lo, up, step="post", color=line.get_color(), alpha=0.2, lw=0)
-        ax.set_xscale("symlog", linthresh=linthresh)
-        ax.set_xlim(0, taus[-1])
-        decades = [10.0 ** k for k in range(-3, 3) if 3 * linthresh <= 10.0 ** k <= taus[-1]]
-        ticks = [0.0, linthresh, *decades]
-        ax.set_xticks(ticks, [f"{x:g}" for x in ticks])  # symlog's own labels overlap at 0
+        if axis.log:  # the linear part (0 .. linthresh) a quarter decade wide: the curves get the panel
+            ax.set_xscale("symlog", linthresh=axis.linthresh, linscale=0.25)
+        ax.set_xlim(0, axis.top)
+        ax.set_xticks(axis.ticks, [f"{x:g}" for x in axis.ticks])  # round values; symlog's own overlap at 0
         ax.set_ylim(0, 1.02)
         ax.set_title(panel, fontsize=10)
         ax.set_xlabel(f"τ: {label('CR_total')}")
@@ -192,7 +221,8 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
     for ax in axes[len(panels):]:
         ax.set_visible(False)
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 8), fontsize=9, frameon=False)
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 8), fontsize=10,
+               frameon=False, title="model", title_fontsize=10)
     fig.suptitle("performance profiles of CR_total (lower is better; band: 95% bootstrap over seeds "
                  "and simulations)", fontsize=10)
     path.parent.mkdir(parents=True, exist_ok=True)
