@@ -1,5 +1,6 @@
 """The comparison engine (`sigmarl.stats.engine`) against independent numbers: a case worked by
-hand, an exact enumeration of every resample at 3 against 3 seeds, scipy's Welch test where the
+hand, an exact enumeration of every resample at 3 against 3 seeds (with scipy's exact
+permutation test for the pooled world), scipy's Welch test where the
 bootstrap-t and the t distribution agree (many normal seeds), and its seeds-needed rule against
 the engine's own simulated power."""
 
@@ -21,15 +22,21 @@ def test_hand_worked_two_seeds_against_a_constant_baseline():
     # a = [1, 3], b = [0, 0]: estimate 2, se = sqrt(var(a) / 2) = 1, t_obs = 2. Centred, a's
     # resamples are (-1, -1), (1, 1) (t* = -inf, +inf) and two mixed ones (t* = 0); b adds
     # nothing. P(t* >= 2) = 1/4, so two-sided p = 1/2. The scaled world needs a factor
-    # (0 + 0) / 2 = 0, not positive: skipped.
+    # (0 + 0) / 2 = 0, not positive: skipped. The pooled world's 6 splits of (1, 3, 0, 0) give
+    # t = 2, +-0.632 (twice each), -2: P(t* >= 2) = 1/6, below the shifted world's, so it stays.
     r = difference([1.0, 3.0], [0.0, 0.0], {**TWO, "up": Null(0.0, "greater")})
     assert r.estimate == 2.0 and r.se == 1.0
     assert r.p["zero"] == pytest.approx(0.5, abs=4 * MC_ERROR)
     assert r.p["up"] == pytest.approx(0.25, abs=4 * MC_ERROR)
 
 
+def _welch(x, y, axis):
+    return (x.mean(axis) - y.mean(axis)) / np.sqrt(x.var(axis, ddof=1) / x.shape[axis] + y.var(axis, ddof=1) / y.shape[axis])
+
+
 def _exact_p(a, b, value, alternative):
-    """Every ordered resample of a and of b enumerated (27 x 27), in both null worlds."""
+    """Every ordered resample of a and of b enumerated (27 x 27) in the shifted and scaled worlds,
+    and the pooled world as scipy's exact permutation test of Welch's t (all 20 splits)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     est = a.mean() - b.mean()
     se = math.sqrt(a.var(ddof=1) / 3 + b.var(ddof=1) / 3)
@@ -49,7 +56,9 @@ def _exact_p(a, b, value, alternative):
         greater, less = np.mean(t >= t_obs), np.mean(t <= t_obs)
         ps.append(greater if alternative == "greater" else less if alternative == "less"
                   else min(1.0, 2 * min(greater, less)))
-    return max(ps)
+    pooled = stats.permutation_test((a - value, b), _welch, permutation_type="independent", vectorized=True,
+                                    n_resamples=np.inf, alternative=alternative).pvalue
+    return max(*ps, pooled)
 
 
 @pytest.mark.parametrize("value, alternative", [(0.0, "two-sided"), (0.5, "less"), (-0.3, "greater")])

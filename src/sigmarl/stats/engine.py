@@ -8,15 +8,19 @@ window against its reference. Its standard error is Welch's, sqrt(sum_i w_i^2 s_
 The test (its null is stated once, with its reason, in docs/concepts.md, "One test"): a
 studentized bootstrap in which each group is resampled from its own seeds only, never pooled
 with another's, so no group is assumed to be another shifted. For a null value c of the
-contrast, two null worlds are built from the seeds and the larger p of the two is kept:
+contrast, null worlds are built from the seeds and the largest p of them is kept:
 
 - shifted: every group moved onto a world where the contrast is c by centring it on its own
   mean (each keeps its own spread and shape);
 - scaled (two groups only): the first group multiplied so that its mean sits at the second's
   plus c (its spread scaled with it, as a rate's seeds scale with their mean); skipped where
-  that factor is not positive.
+  that factor is not positive;
+- pooled (two groups only): the first group moved by c and the two pooled, split at random into
+  groups of their sizes (a studentized permutation test: the world where the two models'
+  seeds are exchangeable, in which it holds its level exactly).
 
-In each world t* = (contrast* - c) / se* over the resamples, and the one-sided p of "greater"
+The null holds in each of these worlds, so a verdict must survive all of them: p is the largest
+of the worlds' p-values (their supremum). In each world t* = (contrast* - c) / se* over the resamples, and the one-sided p of "greater"
 is (1 + #{t* >= t_obs}) / (1 + draws), t_obs = (estimate - c) / se; "less" mirrors it, and
 two-sided is twice the smaller, capped at 1. One set of drawn seeds serves every null value
 and world (a world only moves or scales a group's resampled mean and spread).
@@ -107,6 +111,25 @@ def _t_stars(groups, weights, means, moments, nulls: Mapping[str, Null]
     return shifted, out
 
 
+def _pooled_t_stars(groups, weights, nulls: Mapping[str, Null], rng: np.random.Generator, n_draws: int
+                    ) -> dict[tuple[str, str], np.ndarray]:
+    """(null name, "pooled") -> Welch's t over random splits of the two groups pooled, the first
+    moved by the null value (the world where the two are exchangeable); none for other contrasts."""
+    if len(groups) != 2 or tuple(weights) != (1.0, -1.0):
+        return {}
+    a, b = groups
+    na, nb = len(a), len(b)
+    perm = np.argsort(rng.random((n_draws, na + nb)), axis=1)
+    out = {}
+    for name, null in nulls.items():
+        x = np.concatenate([a - null.value, b])[perm]
+        ga, gb = x[:, :na], x[:, na:]
+        se = np.sqrt(ga.var(1, ddof=1) / na + gb.var(1, ddof=1) / nb)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[(name, "pooled")] = np.nan_to_num((ga.mean(1) - gb.mean(1)) / se, nan=0.0)
+    return out
+
+
 def _scale_factor(means: Sequence[float], weights: Sequence[float], value: float) -> float | None:
     """The factor that moves the first of two groups (+1, -1) onto a contrast of `value`."""
     if len(means) != 2 or tuple(weights) != (1.0, -1.0) or means[0] == 0:
@@ -149,12 +172,14 @@ def compare(groups: Sequence[Sequence[float]], weights: Sequence[float], nulls: 
     drawn = 0
     while True:
         shifted, stars = _t_stars(gs, w, means, _moments(gs, rng, block), nulls)
+        stars.update(_pooled_t_stars(gs, w, nulls, rng, block))
         shifted_t.append(shifted)
         for key, t in stars.items():
             t_obs = _t_obs(estimate, nulls[key[0]].value, se)
             c = counts.setdefault(key, [0, 0])
-            c[0] += int(np.count_nonzero(t >= t_obs))
-            c[1] += int(np.count_nonzero(t <= t_obs))
+            tie = 1e-9 * max(1.0, abs(t_obs)) if math.isfinite(t_obs) else 0.0  # rounding is no difference
+            c[0] += int(np.count_nonzero(t >= t_obs - tie))
+            c[1] += int(np.count_nonzero(t <= t_obs + tie))
         drawn += block
         p = _worst_p(counts, nulls, drawn)
         if draws or drawn >= MAX_DRAWS or all(_mc_error(x, drawn) < MC_ERROR for x in p.values()):
