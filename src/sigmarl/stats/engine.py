@@ -39,12 +39,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
 
-from sigmarl.stats.tests import holm  # noqa: F401  (the families' correction, re-exported)
+from sigmarl.stats.tests import Test, holm, welch  # noqa: F401  (holm: the families' correction, re-exported)
 
 SEED = 20241207
 BLOCK = 50_000
@@ -219,6 +219,20 @@ def difference(model: Sequence[float], baseline: Sequence[float], nulls: Mapping
                level: float = 0.95) -> Record:
     """The contrast model minus baseline."""
     return compare([model, baseline], [1.0, -1.0], nulls, level)
+
+
+def comparison_test(variant: Sequence[float], baseline: Sequence[float], margin: float, level: float = 0.95) -> Test:
+    """A comparison (variant minus baseline) decided by the engine: the two-sided p of no
+    difference, equivalence within +-margin as the larger p of its two one-sided nulls, and the
+    engine's interval; Welch's figures beside them (reported, not decided on). One seed on a side
+    or no spread at all: Welch's record as it stands (undecidable, or decided without noise)."""
+    test = welch(variant, baseline, margin)
+    if not math.isfinite(test.se) or test.se == 0:
+        return test
+    nulls = {"difference": Null(0.0), "above": Null(-margin, "greater"), "below": Null(margin, "less")}
+    r = difference(variant, baseline, nulls, level)
+    return replace(test, p_difference=r.p["difference"], p_equivalence=max(r.p["above"], r.p["below"]),
+                   ci=(r.ci_low, r.ci_high))
 
 
 def interaction(x: Sequence[float], x_base: Sequence[float], y: Sequence[float], y_base: Sequence[float],
