@@ -13,6 +13,7 @@ from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
 from sigmarl.report.compare.interactions import interaction_table, interactions_markdown
 from sigmarl.report.compare.verdicts import Design
+from sigmarl.stats.engine import Null, interaction
 
 # seed means in %: one simulation per seed, so a seed's mean is its value
 SEEDS = {"M0-paper": [1.0, 2.0, 3.0], "M4-paper": [3.0, 4.0, 5.0], "M0": [1.5, 2.5, 2.0], "M4": [2.0, 2.5, 3.0]}
@@ -29,15 +30,18 @@ DESIGN = Design(variants=list(SEEDS), baseline="M0-paper", baselines={"M4": "M0"
 
 def test_difference_of_differences_by_hand():
     # (4 - 2) - (2.5 - 2) = 1.5; group variances 1, 1, 0.25, 0.25 over n = 3 seeds:
-    # se^2 = 1/3 + 1/3 + 1/12 + 1/12 = 5/6; Satterthwaite df = (5/6)^2 / (2 (1/3)^2/2 + 2 (1/12)^2/2) = 100/17
+    # se^2 = 1/3 + 1/3 + 1/12 + 1/12 = 5/6, t = 1.64: decided by the comparison engine
     (r,) = interaction_table(_rows(SEEDS), DESIGN).to_dict("records")
-    se, df = math.sqrt(5 / 6), 100 / 17
     assert (r["x_difference"], r["y_difference"], r["difference"]) == pytest.approx((2.0, 0.5, 1.5))
-    half = stats.t.ppf(0.975, df) * se
-    assert (r["ci_low"], r["ci_high"]) == pytest.approx((1.5 - half, 1.5 + half), rel=1e-8)
-    assert r["p_difference"] == pytest.approx(2 * stats.t.sf(1.5 / se, df), rel=1e-6)
-    assert r["p_equivalence"] == pytest.approx(stats.t.cdf((1.5 - 0.1) / se, df), rel=1e-6)
-    assert r["verdict"] == "undecided"  # p = 0.15: three seeds cannot tell
+    nulls = {"zero": Null(0.0), "above": Null(-0.1, "greater"), "below": Null(0.1, "less")}
+    direct = interaction(*(SEEDS[m] for m in ("M4-paper", "M0-paper", "M4", "M0")), nulls)
+    assert direct.se == pytest.approx(math.sqrt(5 / 6))
+    assert (r["ci_low"], r["ci_high"]) == (direct.ci_low, direct.ci_high) and r["ci_low"] < 1.5 < r["ci_high"]
+    assert r["p_difference"] == direct.p["zero"]
+    assert r["p_equivalence"] == max(direct.p["above"], direct.p["below"])
+    # at least the t distribution's p on Satterthwaite's 100/17 degrees of freedom (0.15): three seeds cannot tell
+    assert r["p_difference"] > 2 * stats.t.sf(1.5 / math.sqrt(5 / 6), 100 / 17) - 0.02
+    assert r["verdict"] == "undecided"
     assert (r["x"], r["x_baseline"], r["y"], r["y_baseline"]) == ("M4-paper", "M0-paper", "M4", "M0")
 
 

@@ -5,24 +5,26 @@ committed folder."""
 from __future__ import annotations
 
 import itertools
+import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
-from scipy import stats
 
 from sigmarl.report.compare.replication import (
+    STRUCK,
     decide,
     difference_claims,
+    one_sided,
     pair_position,
     ranking_claims,
     replication_markdown,
     replication_table,
     summary_line,
 )
-from sigmarl.report.table.paper import paper_values
-from sigmarl.stats.one_sided import greater_p, less_p
+from sigmarl.report.table.paper import paper_values, struck_out
+from sigmarl.stats.engine import Null, difference
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = paper_values()
@@ -48,42 +50,22 @@ def rows_of(seed_means: dict[tuple[str, str], list[float]], cd: float = 1.0, spe
 # ---- the two-seed-by-two-seed case, by hand ----
 
 def test_two_by_two_pairs_by_hand():
-    # pairs of (1, 3) minus (0, 1): 1, 0, 3, 2; 2.5 lies above three of four
-    pct, low, high = pair_position(np.array([1.0, 3.0]), np.array([0.0, 1.0]), 2.5)
-    assert pct == 75.0
-    # numpy's linear percentiles of 0, 1, 2, 3: the 2.5th at 0.075, the 97.5th at 2.925
-    assert low == pytest.approx(0.075) and high == pytest.approx(2.925)
+    # pairs of (1, 3) minus (0, 1): 1, 0, 3, 2; 2.5 lies above three of four, one pair beyond it:
+    # p = 2 (1 + 1) / (1 + 4)
+    pct, p = pair_position(np.array([1.0, 3.0]), np.array([0.0, 1.0]), 2.5)
+    assert pct == 75.0 and p == pytest.approx(0.8)
     assert pair_position(np.array([1.0, 3.0]), np.array([0.0, 1.0]), 1.0)[0] == 37.5  # tie counts half
-    assert pair_position(np.array([1.0, 3.0]), np.array([0.0, 1.0]), 10.0)[0] == 100.0  # beyond every pair
+    # beyond every pair: the smallest p four pairs allow, 2 / 5
+    assert pair_position(np.array([1.0, 3.0]), np.array([0.0, 1.0]), 10.0) == (100.0, pytest.approx(0.4))
 
 
-def test_two_by_two_permutation_p_by_hand():
-    a, b = [1.0, 3.0], [0.0, 1.0]
-    # the 6 splits of (1, 3, 0, 1): differences +1.5, -1.5, -0.5, +0.5, +1.5, -1.5; observed +1.5
-    assert greater_p(a, b) == pytest.approx(2 / 6)
-    # moved by 1: (0, 2, 0, 1) splits to +0.5, -1.5, -0.5, +0.5, +1.5, -0.5; observed +0.5
-    assert greater_p(a, b, shift=1.0) == pytest.approx(3 / 6)
-    # less: -1.5 and below, observed +1.5 is the largest but one: 6 of 6 at or below it
-    assert less_p(a, b) == pytest.approx(1.0)
-    # moved by 2: (-1, 1, 0, 1) splits to -0.5, -1.5, -0.5, +0.5, +1.5, +0.5; observed -0.5
-    assert less_p(a, b, shift=2.0) == pytest.approx(3 / 6)
-
-
-@pytest.mark.parametrize("statistic", ["difference", "welch"])
-@pytest.mark.parametrize("shift", [0.0, 0.4])
-def test_one_sided_p_is_scipys_exact_permutation_test(statistic, shift):
+def test_one_sided_p_is_the_engines():
     rng = np.random.default_rng(7)
     a, b = rng.lognormal(0, 1, 4), rng.lognormal(0, 1, 5)
-
-    def stat(x, y, axis):
-        if statistic == "difference":
-            return x.mean(axis) - y.mean(axis)
-        return (x.mean(axis) - y.mean(axis)) / np.sqrt(x.var(axis, ddof=1) / x.shape[axis] + y.var(axis, ddof=1) / y.shape[axis])
-
-    for alternative, ours in (("greater", greater_p), ("less", less_p)):
-        ref = stats.permutation_test((a - shift, b), stat, permutation_type="independent", alternative=alternative,
-                                     n_resamples=np.inf, vectorized=True).pvalue
-        assert ours(a, b, shift, statistic) == pytest.approx(ref, abs=1e-12), alternative
+    record, sign = one_sided(a, b, -0.4)  # the paper's direction negative: tested on the negated seeds
+    assert sign == -1.0
+    direct = difference(-a, -b, {"smaller": Null(0.4, "less"), "direction": Null(0.0, "greater")})
+    assert record.p["smaller"] == direct.p["smaller"] and record.p["direction"] == direct.p["direction"]
 
 
 # ---- the rules ----
@@ -101,18 +83,20 @@ def test_verdict_rules(p, expected):
 
 
 def test_reversed_claim_and_paper_outside_our_range():
-    # the paper: M4 collides more than M0 on CPM; here M4's 6 seeds all collide less than M0's 6
+    # the paper: M4 collides more than M0 on CPM; here M4's 8 seeds all collide less than M0's 8
     claimed = paper_difference("CPM", "M4")
     assert claimed > 0
-    rows = rows_of({("M0", "CPM"): [1.0, 1.1, 1.2, 1.3, 1.4, 1.5], ("M4", "CPM"): [0.0, 0.01, 0.02, 0.03, 0.04, 0.05]})
+    rows = rows_of({("M0", "CPM"): [1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.2, 1.3],
+                    ("M4", "CPM"): [0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.02, 0.03]})
     r = difference_claims(rows, ["M0", "M4"], "M0").iloc[0]
     assert r["paper"] == pytest.approx(claimed)
     assert r["ours"] == pytest.approx(0.025 - 1.25)
-    assert r["pair_percentile"] == 100.0 and not r["paper_inside_pairs"]  # beyond every pair: not seed luck
-    # reversed: the observed split is the most extreme of C(12, 6) = 924; one claim, Holm leaves it
-    assert r["p_reversed_holm"] == pytest.approx(1 / 924)
-    assert r["verdict"] == "reversed"
+    assert r["seeds"] == "8/8"
+    # beyond every one of 64 pairs: p = 2 / 65, one claim, so Holm leaves it: not seed luck
+    assert r["pair_percentile"] == 100.0 and r["p_seed_luck"] == pytest.approx(2 / 65)
+    assert r["p_reversed"] < 0.001 and r["verdict"] == "reversed"
     assert r["explanation"] == "not seed luck"
+    assert r["ci_low"] < r["ours"] < r["ci_high"] < 0
 
 
 def test_not_reproduced_and_undecided_with_seeds_needed():
@@ -122,13 +106,35 @@ def test_not_reproduced_and_undecided_with_seeds_needed():
                     ("M0", "CPM"): [0.2, 0.9, 0.4], ("M5", "CPM"): [0.5, 0.1, 0.9]}, spread=0.05)
     t = difference_claims(rows, ["M0", "M5"], "M0").set_index("scenario")
     assert t.loc["Intersection", "verdict"] == "not reproduced"
-    assert t.loc["Intersection", "p_smaller"] == pytest.approx(1 / 924)  # every split below +2.05
-    assert t.loc["CPM", "verdict"] == "undecided"  # 3 against 3 seeds cannot decide at all
-    # +2.05 beyond every pair of near-zero seeds; CPM's +0.25 inside pairs spread over +-0.8
-    assert t.loc["Intersection", "explanation"] == "not seed luck"
+    assert t.loc["Intersection", "p_smaller"] < 0.01
+    assert t.loc["CPM", "verdict"] == "undecided"
+    # +2.05 beyond all 36 pairs: p 2/37 = 0.054 unadjusted, so seed luck cannot be ruled out at 6 seeds
+    assert t.loc["Intersection", "explanation"] == "seed luck"
     assert t.loc["CPM", "explanation"] == "seed luck"
     # 3 against 3 cannot decide; the seeds a decision needs are more, and finite
     assert not pd.isna(t.loc["CPM", "seeds_needed"]) and t.loc["CPM", "seeds_needed"] > 3
+
+
+def test_one_seed_a_side_is_undecided_with_no_interval():
+    rows = rows_of({("M0", "CPM"): [0.4], ("M5", "CPM"): [0.9], ("M0", "Intersection"): [0.5, 0.7],
+                    ("M5", "Intersection"): [4.0]})
+    t = difference_claims(rows, ["M0", "M5"], "M0")
+    assert (t["verdict"] == "undecided").all() and t["ci_low"].isna().all() and t["seeds_needed"].isna().all()
+    assert "[–]" in replication_markdown(t)
+    ranks = ranking_claims(rows_of({("M0", "CPM"): [0.4], ("M4", "CPM"): [9.0]}), ["M0", "M4"], n_boot=200)
+    assert ranks["verdict"].tolist() == ["undecided"]
+
+
+def test_struck_out_values_are_data_and_no_claim():
+    # Table I's struck-out values, read from its csv: M1 on the three unseen scenarios, every metric
+    assert {(s, m) for s, _, m in struck_out()} == {("Intersection", "M1"), ("On-Ramp", "M1"), ("Roundabout", "M1")}
+    rows = rows_of({("M0", "On-Ramp"): [0.1, 0.2, 0.1], ("M1", "On-Ramp"): [40.0, 45.0, 42.0],
+                    ("M0", "CPM"): [0.1, 0.2, 0.1], ("M1", "CPM"): [40.0, 45.0, 42.0]})
+    t = difference_claims(rows, ["M0", "M1"], "M0").set_index("scenario")
+    assert t.loc["On-Ramp", "verdict"] == STRUCK and math.isnan(t.loc["On-Ramp", "p_direction"])
+    assert t.loc["On-Ramp", "ours"] == pytest.approx(42.333 - 0.1333, abs=1e-3)  # our number beside it
+    assert t.loc["CPM", "verdict"] != STRUCK
+    assert "1 more struck out by the paper" in summary_line(t.reset_index())
 
 
 def test_ranking_by_whole_seeds():
@@ -137,16 +143,16 @@ def test_ranking_by_whole_seeds():
              ("M0", "CPM"): [0.1, 0.2, 0.1], ("M4", "CPM"): [2.0, 2.5, 3.0]}
     t = ranking_claims(rows_of(seeds), ["M0", "M4"], n_boot=500).set_index("scenario")
     assert PAPER.loc[("CPM", "CS"), ["M0", "M4"]].idxmax() == "M4"
-    assert t.loc["Intersection", "model"] == "M0" and t.loc["Intersection", "probability_first"] == 1.0
+    assert t.loc["Intersection", "model"] == "M0" and t.loc["Intersection", "ours"] == 1.0
     assert t.loc["Intersection", "verdict"] == "reproduced"
-    assert t.loc["CPM", "probability_first"] == 0.0 and t.loc["CPM", "verdict"] == "not reproduced"
-    assert t.loc["CPM", "most_often_first"] == "M0"
+    assert t.loc["CPM", "ours"] == 0.0 and t.loc["CPM", "verdict"] == "not reproduced"
+    assert t.loc["CPM", "explanation"] == "most often first: M0"
 
 
 def test_ranking_share_of_an_even_race_is_near_half():
     # two seeds each, one better and one worse than the other model: whichever draw has the lower mean wins
     seeds = {("M0", "Intersection"): [0.0, 2.0], ("M4", "Intersection"): [1.0, 1.0]}
-    share = ranking_claims(rows_of(seeds), ["M0", "M4"], n_boot=4000).iloc[0]["probability_first"]
+    share = ranking_claims(rows_of(seeds), ["M0", "M4"], n_boot=4000).iloc[0]["ours"]
     # M0 ranks first when its draw holds seed 0 at least once but not only seed 1: draws (0,0), (0,1), (1,0)
     # give means 0, 1, 1 against M4's 1; CR ties leave CD and AS equal, scores equal, argmax picks M0
     assert share == pytest.approx(0.75, abs=0.03)
@@ -159,7 +165,8 @@ def test_published_replication_is_the_committed_folders():
 
     rows = read_results(ROOT / "results" / "paper-budget").rows
     table = replication_table(rows, ["M0", "M1", "M2", "M3", "M4", "M5"])
-    assert (table["claim"] == "difference").sum() == 20 and (table["claim"] == "ranking").sum() == 4
+    claims = table[(table["claim"] == "difference") & (table["verdict"] != STRUCK)]
+    assert len(claims) == 17 and (table["verdict"] == STRUCK).sum() == 3 and (table["claim"] == "ranking").sum() == 4
     assert table["verdict"].notna().all()
     page = (ROOT / "docs" / "results" / "paper-study.md").read_text(encoding="utf-8")
     assert replication_markdown(table) in page
@@ -170,8 +177,7 @@ def test_published_replication_is_the_committed_folders():
 
 
 def test_summary_counts_each_verdict():
-    table = pd.DataFrame({"claim": ["difference"] * 3 + ["ranking"], "n_model": [5, 6, 14, 14],
-                          "n_baseline": [14, 14, 14, pd.NA],
+    table = pd.DataFrame({"claim": ["difference"] * 3 + ["ranking"], "seeds": ["5/14", "6/14", "14/14", "14"],
                           "verdict": ["reversed", "undecided", "undecided", "reproduced"]})
     assert summary_line(table) == ("Summary (5–14 seeds a model). Of the paper's 3 CR_total differences: "
                                    "1 reversed; 2 undecided. Of the paper's 1 best-score rankings: 1 reproduced.")

@@ -29,9 +29,12 @@ class Test:
     p_difference: float
     p_equivalence: float
     p_difference_welch: float = math.nan  # Welch's p of the difference, whichever test decides
+    ci: tuple[float, float] | None = None  # the deciding test's own interval, where it has one
 
     def interval(self, level: float) -> tuple[float, float]:
-        """Welch's t-interval of the difference."""
+        """The deciding test's interval where it gave one, else Welch's t-interval of the difference."""
+        if self.ci is not None:
+            return self.ci
         if not math.isfinite(self.se):
             return math.nan, math.nan
         if self.se == 0:

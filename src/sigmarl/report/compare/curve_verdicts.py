@@ -3,9 +3,9 @@
 Two questions the evaluation verdicts cannot answer:
 
 - **When does a difference appear?** For each declared comparison (a variant against its
-  baseline, `verdicts.Design`) and each window of `WINDOW` iterations, Welch's test on the
-  seeds' mean episode reward over that window, Holm-corrected over every (comparison, window)
-  test. A comparison *parts* at the first window from which every later window is decided the
+  baseline, `verdicts.Design`) and each window of `WINDOW` iterations, the comparison engine's
+  two-sided test (`sigmarl.stats.engine`) on the seeds' mean episode reward over that window,
+  Holm-corrected over every (comparison, window) test. A comparison *parts* at the first window from which every later window is decided the
   same way. If that is early, a reduced training budget is enough to show the difference.
 - **Is the paper's curve one of ours?** The paper trained one seed per model, so its final
   reward is one draw. Ours are several: the prediction interval for one more seed's final
@@ -32,8 +32,8 @@ import pandas as pd
 from sigmarl.report.compare.verdicts import Design
 from sigmarl.report.format import signed
 from sigmarl.report.table.training import LAST
+from sigmarl.stats.engine import Null, difference, holm
 from sigmarl.stats.intervals import t_critical
-from sigmarl.stats.tests import holm, welch
 
 WINDOW = 25  # iterations per window: the curves are noisy per iteration
 
@@ -61,7 +61,7 @@ def window_means(curves: pd.DataFrame, window: int = WINDOW) -> pd.DataFrame:
 
 def separation_table(curves: pd.DataFrame, design: Design, window: int = WINDOW) -> pd.DataFrame:
     """Per compared variant and window its difference in mean reward from its baseline, with
-    Welch's interval and verdict (higher, lower or undecided at Holm's level over all rows)."""
+    the engine's interval and verdict (higher, lower or undecided at Holm's level over all rows)."""
     means = window_means(curves, window)
     rows = []
     for variant in design.compared:
@@ -70,13 +70,12 @@ def separation_table(curves: pd.DataFrame, design: Design, window: int = WINDOW)
         for first in sorted(set(a["first"]) & set(b["first"])):
             x = a.loc[a["first"] == first, "reward"].to_numpy()
             y = b.loc[b["first"] == first, "reward"].to_numpy()
-            test = welch(x, y, margin=0.0)
-            low, high = test.interval(0.95)
+            r = difference(x, y, {"zero": Null(0.0)}, 1 - design.alpha)
             rows.append({"variant": variant, "baseline": base, "first": int(first), "last": int(first + window - 1),
-                         "n_variant": test.n_variant, "n_baseline": test.n_baseline,
-                         "variant_mean": test.variant_mean, "baseline_mean": test.baseline_mean,
-                         "difference": test.difference, "ci_low": low, "ci_high": high,
-                         "p_difference": test.p_difference})
+                         "n_variant": len(x), "n_baseline": len(y),
+                         "variant_mean": float(np.mean(x)), "baseline_mean": float(np.mean(y)),
+                         "difference": r.estimate, "ci_low": r.ci_low, "ci_high": r.ci_high,
+                         "p_difference": r.p["zero"]})
     frame = pd.DataFrame(rows, columns=SEPARATION_COLUMNS)
     frame["p_difference_holm"] = holm(frame["p_difference"].to_numpy()) if len(frame) else []
     decided = np.nan_to_num(frame["p_difference_holm"].to_numpy(float), nan=1.0) <= design.alpha
@@ -148,8 +147,8 @@ def curve_verdicts_markdown(separation: pd.DataFrame, paper_seeds: pd.DataFrame,
             lines.append(f"| {variant} | {base} | {where} | " + " | ".join(cells.get(f, "–") for f in firsts) + " |")
         lines += [
             "",
-            "Each cell: the variant's mean reward minus its baseline's over the window's seeds [Welch's 95% interval, "
-            "unadjusted], * where Holm's correction decides it. parts at: the window from which every later one is "
+            "Each cell: the variant's mean reward minus its baseline's over the window's seeds [the comparison "
+            "engine's 95% interval, unadjusted], * where Holm's correction decides it. parts at: the window from which every later one is "
             "decided the same way.",
         ]
     if len(paper_seeds):

@@ -4,10 +4,9 @@ A study whose variants have their own baselines (`study.baselines`) may set two 
 against each other (`study.interactions`: name -> [x, y]): x against its baseline and y
 against its own, e.g. M4-paper against M0-paper and M4 against M0, to ask whether the paper's
 rules change what leaving out the boundary distances does. The interaction is the difference
-of the two differences, (x - bx) - (y - by), over the seed means of four independent groups.
-Its standard error is the root of the sum of the two comparisons' squared standard errors,
-and its degrees of freedom are Satterthwaite's over the four groups, which equal
-se^4 / (se_x^4 / df_x + se_y^4 / df_y) for the two comparisons' Welch degrees of freedom.
+of the two differences, (x - bx) - (y - by), over the seed means of four independent groups,
+decided by the comparison engine (`sigmarl.stats.engine.interaction`: each group resampled from
+its own seeds under the null), with its bootstrap-t interval.
 
 Verdicts as for comparisons, over their own Holm family (every interaction, scenario and
 metric): **differs** where the adjusted p of a zero interaction is <= alpha; **same within
@@ -16,16 +15,13 @@ metric): **differs** where the adjusted p of a zero interaction is <= alpha; **s
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import shown_unit
-from sigmarl.report.compare.verdicts import Design, comparisons, margin_unit
+from sigmarl.report.compare.verdicts import Design, margin_unit, seed_values
 from sigmarl.report.format import p_text, signed
-from sigmarl.stats.intervals import t_critical
-from sigmarl.stats.tests import contrast, holm
+from sigmarl.stats.engine import Null, holm, interaction
 
 COLUMNS = [
     "scenario", "metric", "interaction", "x", "x_baseline", "y", "y_baseline", "x_difference",
@@ -36,23 +32,28 @@ COLUMNS = [
 
 def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
     """One row per (scenario, metric, interaction) the rows can make, in that order."""
-    tests = {(c.scenario, c.metric, c.variant): c.test for c in comparisons(rows, design)}
+    scenarios = list(design.scenarios) if design.scenarios is not None else list(dict.fromkeys(rows["scenario"]))
     records = []
-    for (scenario, metric, variant), tx in tests.items():
-        for name, (x, y) in design.interactions.items():
-            if variant != x or (scenario, metric, y) not in tests:
-                continue
-            margin = design.margins[metric]
-            t = contrast(tx, tests[(scenario, metric, y)], margin)
-            se_ok = math.isfinite(t.df)
-            half = t_critical(t.df, 1 - design.alpha) * t.se if se_ok else math.nan
-            records.append({
-                "scenario": scenario, "metric": metric, "interaction": name,
-                "x": x, "x_baseline": design.baseline_of(x), "y": y, "y_baseline": design.baseline_of(y),
-                "x_difference": t.variant_mean, "y_difference": t.baseline_mean, "difference": t.difference,
-                "ci_low": t.difference - half, "ci_high": t.difference + half, "margin": margin,
-                "p_difference": t.p_difference, "p_equivalence": t.p_equivalence,
-            })
+    for metric in design.metrics:
+        values = seed_values(rows, metric)
+        margin = design.margins[metric]
+        for scenario in scenarios:
+            for name, (x, y) in design.interactions.items():
+                labels = (x, design.baseline_of(x), y, design.baseline_of(y))
+                groups = [values.get((m, scenario)) for m in labels]
+                if any(not g for g in groups):
+                    continue
+                r = interaction(*([g.mean() for g in gs] for gs in groups),
+                                {"zero": Null(0.0), "above": Null(-margin, "greater"), "below": Null(margin, "less")},
+                                1 - design.alpha)
+                means = [float(np.mean([g.mean() for g in gs])) for gs in groups]
+                records.append({
+                    "scenario": scenario, "metric": metric, "interaction": name, "x": x, "x_baseline": labels[1],
+                    "y": y, "y_baseline": labels[3], "x_difference": means[0] - means[1],
+                    "y_difference": means[2] - means[3], "difference": r.estimate, "ci_low": r.ci_low,
+                    "ci_high": r.ci_high, "margin": margin, "p_difference": r.p["zero"],
+                    "p_equivalence": max(r.p["above"], r.p["below"]),
+                })
     frame = pd.DataFrame(records, columns=COLUMNS)
     if len(frame):
         frame["p_difference_holm"] = holm(frame["p_difference"].to_numpy())
@@ -87,8 +88,9 @@ def interactions_markdown(table: pd.DataFrame, design: Design) -> str:
         )
     lines += [
         "",
-        "difference of differences: the first minus the second, with Welch-Satterthwaite's t-interval over "
-        "the seed means of the four groups. differs: a zero interaction rejected at Holm's level; same: two "
-        "one-sided tests within the metric's margin; otherwise undecided.",
+        "difference of differences: the first minus the second, over the seed means of the four groups, with "
+        "the comparison engine's bootstrap-t interval (each group resampled from its own seeds; "
+        "docs/concepts.md). differs: a zero interaction rejected at Holm's level; same: two one-sided tests "
+        "within the metric's margin; otherwise undecided (always with one seed in a group).",
     ]
     return "\n".join(lines) + "\n"

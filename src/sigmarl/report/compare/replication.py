@@ -2,27 +2,28 @@
 
 The paper trained one seed per model, so each of its differences (Mk - M0, CR_total, per
 scenario) is one draw of "one seed of Mk minus one seed of M0". Per claim, from our seed means
-(collision rates trimmed as the paper's: each evaluation's best and worst simulation dropped):
+(collision rates trimmed as the paper's: each evaluation's best and worst simulation dropped),
+every test is the comparison engine's (`sigmarl.stats.engine`: each model resampled from its own
+seeds under the null), in the paper's direction s = sign(D): shown in its direction (H0 s d <= 0),
+reversed (H0 s d >= 0), smaller than the paper's (H0 s d >= |D|) and larger (H0 s d <= |D|), each
+kind Holm-adjusted over the claims; ours d with the engine's interval.
 
-- our difference d (mean of seed means, Mk minus M0) with Welch's 95 % interval;
-- where the paper's difference D falls among our one-seed-minus-one-seed differences (every
-  pair of a seed of Mk and a seed of M0): its percentile (ties count half) and whether it lies
-  inside their central 95 %; outside, seed luck does not explain it;
-- four one-sided permutation tests of the difference of seed means (`sigmarl.stats.one_sided`,
-  the verdicts' own statistic), in the paper's direction s = sign(D): shown in its direction (H0 s d <= 0), reversed (H0 s d >= 0), smaller
-  than the paper's (H0 s d >= |D|) and larger (H0 s d <= |D|), each kind Holm-adjusted over the
-  claims.
+Seed luck: where the paper's D falls among our one-seed-minus-one-seed differences (every pair of
+a seed of Mk and a seed of M0): its percentile (ties half) and a two-sided p, twice
+(1 + pairs beyond D on its nearer side) / (1 + pairs), Holm-adjusted over the claims.
 
-Verdict, in order: **reversed** (reversed shown); **reproduced, smaller** / **reproduced,
-larger** (direction shown, and smaller / larger shown); **reproduced** (direction shown);
-**not reproduced** (smaller shown, direction not); else **undecided**, with the seeds per model
-for power 0.8 to tell a true difference of D from none at Holm's level for the claims still open
-(the planning of `--plan` at delta = D).
+Verdict, in order: fewer than 2 seeds a side: **undecided**; **reversed** (reversed shown);
+**reproduced, smaller** / **reproduced, larger**; **reproduced** (direction shown); **not
+reproduced** (smaller shown, direction not); else **undecided**, with the engine's seeds per model
+to tell a true difference of D from none at Holm's level for the claims still open. A value that
+Table I strikes out (`struck_out` in its csv) is no claim: listed apart, **struck out by the
+paper**, with our numbers beside it, outside every family.
 
 Ranking claims: the model with the paper's best composite score on each scenario; the share of
 whole-seed bootstrap replicates (each model's seeds drawn with replacement, a drawn seed bringing
 all its scenarios; composite normalisers recomputed per replicate) in which that model ranks first
-here; reproduced at >= 1 - alpha, not reproduced at <= alpha, else undecided.
+here; reproduced at >= 1 - alpha, not reproduced at <= alpha, else (or with fewer than 2 seeds of a
+model) undecided.
 """
 
 from __future__ import annotations
@@ -36,40 +37,40 @@ from sigmarl.metrics import COMPOSITE
 from sigmarl.report.compare.verdicts import seed_values
 from sigmarl.report.format import p_text, signed
 from sigmarl.report.table.aggregate import trim_collisions
-from sigmarl.report.table.paper import paper_values
+from sigmarl.report.table.paper import paper_values, struck_out
 from sigmarl.stats import bootstrap as bs
-from sigmarl.stats.one_sided import greater_p, less_p
-from sigmarl.stats.power import seeds_for_difference
-from sigmarl.stats.tests import holm, welch
-from sigmarl.stats.variance import components
+from sigmarl.stats.engine import Null, difference, holm, seeds_needed
 
 METRIC = "CR_total"
 N_BOOT = 2000
+STRUCK = "struck out by the paper"
 COLUMNS = [
-    "claim", "scenario", "metric", "model", "baseline", "n_model", "n_baseline", "paper", "ours",
-    "ci_low", "ci_high", "pair_percentile", "pair_low", "pair_high", "paper_inside_pairs",
-    "p_direction", "p_direction_holm", "p_reversed", "p_reversed_holm", "p_smaller", "p_smaller_holm",
-    "p_larger", "p_larger_holm", "verdict", "explanation", "seeds_needed", "probability_first",
-    "most_often_first",
+    "claim", "scenario", "model", "seeds", "paper", "ours", "ci_low", "ci_high", "pair_percentile",
+    "p_seed_luck", "p_direction", "p_reversed", "p_smaller", "p_larger", "verdict", "explanation",
+    "seeds_needed",
 ]  # fmt: skip
 KINDS = ("direction", "reversed", "smaller", "larger")
 
 
-def pair_position(mine: np.ndarray, base: np.ndarray, paper: float) -> tuple[float, float, float]:
+def pair_position(mine: np.ndarray, base: np.ndarray, paper: float) -> tuple[float, float]:
     """The paper's difference among every one-seed-minus-one-seed difference of our seed means:
-    its percentile (ties half) and the pairs' central 95 % (2.5th and 97.5th percentiles)."""
+    its percentile (ties half) and its two-sided p, 2 (1 + pairs beyond it on its nearer side)
+    / (1 + pairs), capped at 1 (the chance that one more pair lies as far out)."""
     pairs = (mine[:, None] - base[None, :]).ravel()
     below, tied = np.count_nonzero(pairs < paper), np.count_nonzero(pairs == paper)
-    low, high = np.percentile(pairs, [2.5, 97.5])
-    return 100.0 * (below + 0.5 * tied) / len(pairs), float(low), float(high)
+    above = len(pairs) - below - tied
+    p = min(1.0, 2 * (1 + min(below, above) + 0.5 * tied) / (1 + len(pairs)))
+    return 100.0 * (below + 0.5 * tied) / len(pairs), p
 
 
-def one_sided(mine: np.ndarray, base: np.ndarray, paper: float) -> dict[str, float]:
-    """The four one-sided p-values of a claim, in the paper's direction."""
+def one_sided(mine: np.ndarray, base: np.ndarray, paper: float):
+    """The engine's record of a claim, with its four one-sided p-values in the paper's direction."""
     s = 1.0 if paper >= 0 else -1.0
-    a, b, size = s * mine, s * base, abs(paper)
-    return {"direction": greater_p(a, b, 0.0), "reversed": less_p(a, b, 0.0),
-            "smaller": less_p(a, b, size), "larger": greater_p(a, b, size)}
+    size = abs(paper)
+    nulls = {"direction": Null(0.0, "greater"), "reversed": Null(0.0, "less"),
+             "smaller": Null(size, "less"), "larger": Null(size, "greater")}
+    record = difference(s * mine, s * base, nulls)
+    return record, s
 
 
 def decide(p: dict[str, float], alpha: float) -> str:
@@ -83,19 +84,37 @@ def decide(p: dict[str, float], alpha: float) -> str:
     return "not reproduced" if p["smaller"] <= alpha else "undecided"
 
 
-def explain(verdict: str, inside_pairs: bool) -> str:
+def explain(verdict: str, p_luck: float, p_luck_holm: float, alpha: float) -> str:
     """What a claim that does not reproduce is attributed to from this study's seeds alone: seed
-    luck where the paper's one-seed difference lies inside our pairs' central 95 %, else not
-    (whether the paper's rules explain it is the rules study's interaction, not this table's)."""
-    if verdict.startswith("reproduced"):
+    luck where the paper's one-seed difference is not rare among our pairs; rare under seed luck
+    where it is at alpha but not at Holm's level over the claims; else not seed luck (whether the
+    paper's rules explain it is the rules study's interaction, not this table's)."""
+    if verdict.startswith("reproduced") or verdict == STRUCK or not math.isfinite(p_luck):
         return "–"
-    return "seed luck" if inside_pairs else "not seed luck"
+    if p_luck_holm <= alpha:
+        return "not seed luck"
+    return "rare under seed luck" if p_luck <= alpha else "seed luck"
+
+
+def _claim(scenario: str, model: str, claimed: float, groups, base_groups) -> dict:
+    mine = np.array([g.mean() for g in groups])
+    base = np.array([g.mean() for g in base_groups])
+    record, s = one_sided(mine, base, claimed)
+    lo, hi = (s * record.ci_low, s * record.ci_high) if s > 0 else (s * record.ci_high, s * record.ci_low)
+    pct, p_luck = pair_position(mine, base, claimed)
+    return {"claim": "difference", "scenario": scenario, "model": model, "seeds": f"{len(mine)}/{len(base)}",
+            "paper": claimed, "ours": s * record.estimate, "ci_low": lo, "ci_high": hi, "pair_percentile": pct,
+            "_p_luck": p_luck if record.decidable else math.nan, "_n": min(len(mine), len(base)),
+            "_variances": (float(np.var(mine, ddof=1)) if len(mine) > 1 else math.nan,
+                           float(np.var(base, ddof=1)) if len(base) > 1 else math.nan),
+            **{f"p_{k}": v for k, v in record.p.items()}}
 
 
 def difference_claims(rows: pd.DataFrame, models: list[str], baseline: str, alpha: float = 0.05,
                       power: float = 0.8) -> pd.DataFrame:
-    """One row per (scenario, model) claim of the paper's CR_total differences (`COLUMNS`)."""
-    paper = paper_values()
+    """One row per (scenario, model) claim of the paper's CR_total differences (`COLUMNS`), the
+    values Table I strikes out after them."""
+    paper, struck = paper_values(), struck_out()
     values = seed_values(rows, METRIC)
     records = []
     for scenario in dict.fromkeys(rows["scenario"]):
@@ -104,35 +123,29 @@ def difference_claims(rows: pd.DataFrame, models: list[str], baseline: str, alph
             if model == baseline or key not in paper.index or model not in paper.columns:
                 continue
             groups, base_groups = values.get((model, scenario)), values.get((baseline, scenario))
-            if not groups or not base_groups or len(groups) < 2 or len(base_groups) < 2:
+            if not groups or not base_groups:
                 continue
-            mine = np.array([g.mean() for g in groups])
-            base = np.array([g.mean() for g in base_groups])
             claimed = float(paper.loc[key, model] - paper.loc[key, baseline])
-            test = welch(mine, base, 0.0)
-            lo, hi = test.interval(1 - alpha)
-            pct, pair_lo, pair_hi = pair_position(mine, base, claimed)
-            record = {"claim": "difference", "scenario": scenario, "metric": METRIC, "model": model,
-                      "baseline": baseline, "n_model": len(mine), "n_baseline": len(base), "paper": claimed,
-                      "ours": test.difference, "ci_low": lo, "ci_high": hi, "pair_percentile": pct,
-                      "pair_low": pair_lo, "pair_high": pair_hi, "paper_inside_pairs": pair_lo <= claimed <= pair_hi,
-                      "_variances": (components(groups).seed_mean_variance(),
-                                     components(base_groups).seed_mean_variance())}
-            record.update({f"p_{k}": v for k, v in one_sided(mine, base, claimed).items()})
+            record = _claim(scenario, model, claimed, groups, base_groups)
+            record["_struck"] = (scenario, METRIC, model) in struck
             records.append(record)
-    frame = pd.DataFrame(records)
-    if not len(frame):
+    if not records:
         return pd.DataFrame(columns=COLUMNS)
+    frame = pd.DataFrame(records)
+    claims = frame[~frame["_struck"]].copy()
     for kind in KINDS:
-        frame[f"p_{kind}_holm"] = holm(frame[f"p_{kind}"].tolist())
-    frame["verdict"] = [decide({k: r[f"p_{k}_holm"] for k in KINDS}, alpha) for _, r in frame.iterrows()]
-    frame["explanation"] = [explain(v, bool(i)) for v, i in zip(frame["verdict"], frame["paper_inside_pairs"], strict=True)]
-    still_open = max(int((frame["verdict"] == "undecided").sum()), 1)
-    frame["seeds_needed"] = [
-        seeds_for_difference(r["paper"], *r["_variances"], alpha / still_open, power)
-        if r["verdict"] == "undecided" else None for _, r in frame.iterrows()]
-    frame["seeds_needed"] = frame["seeds_needed"].astype("Int64")
-    return frame.drop(columns="_variances").reindex(columns=COLUMNS)
+        claims[f"p_{kind}"] = holm(claims[f"p_{kind}"].tolist())
+    claims["p_seed_luck"] = holm(claims["_p_luck"].tolist())
+    claims["verdict"] = [decide({k: r[f"p_{k}"] for k in KINDS}, alpha) for _, r in claims.iterrows()]
+    claims["explanation"] = [explain(r["verdict"], r["_p_luck"], r["p_seed_luck"], alpha) for _, r in claims.iterrows()]
+    still_open = max(int((claims["verdict"] == "undecided").sum()), 1)
+    claims["seeds_needed"] = [
+        seeds_needed(r["paper"], r["_variances"], (1.0, -1.0), alpha / still_open, power, sides=1)
+        if r["verdict"] == "undecided" and r["_n"] >= 2 else None for _, r in claims.iterrows()]
+    gone = frame[frame["_struck"]].copy()
+    gone[[f"p_{k}" for k in KINDS]] = math.nan
+    gone = gone.assign(p_seed_luck=math.nan, verdict=STRUCK, explanation="–", seeds_needed=None)
+    return pd.concat([claims, gone], ignore_index=True).reindex(columns=COLUMNS)
 
 
 def _seed_metric_means(rows: pd.DataFrame, model: str, scenarios: list[str]) -> np.ndarray | None:
@@ -173,9 +186,11 @@ def ranking_claims(rows: pd.DataFrame, models: list[str], alpha: float = 0.05,
         share = float(np.mean(first[:, j] == names.index(best)))
         counts = np.bincount(first[:, j], minlength=len(names))
         verdict = "reproduced" if share >= 1 - alpha else "not reproduced" if share <= alpha else "undecided"
-        records.append({"claim": "ranking", "scenario": scenario, "metric": "CS", "model": best,
-                        "n_model": len(per_model[best]), "verdict": verdict, "probability_first": share,
-                        "most_often_first": names[int(np.argmax(counts))]})
+        if min(len(v) for v in per_model.values()) < 2:  # one seed ranks by luck alone
+            verdict = "undecided"
+        records.append({"claim": "ranking", "scenario": scenario, "model": best,
+                        "seeds": str(len(per_model[best])), "ours": share, "verdict": verdict,
+                        "explanation": f"most often first: {names[int(np.argmax(counts))]}"})
     return pd.DataFrame(records).reindex(columns=COLUMNS)
 
 
@@ -186,8 +201,7 @@ def replication_table(rows: pd.DataFrame, models: list[str], baseline: str = "M0
     parts = [difference_claims(trimmed, models, baseline, alpha), ranking_claims(trimmed, models, alpha)]
     parts = [p for p in parts if len(p)]
     table = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=COLUMNS)
-    for col in ("n_model", "n_baseline", "seeds_needed"):
-        table[col] = table[col].astype("Int64")
+    table["seeds_needed"] = table["seeds_needed"].astype("Int64")
     return table
 
 
@@ -195,16 +209,21 @@ VERDICTS = ("reproduced", "reproduced, smaller", "reproduced, larger", "not repr
 
 
 def summary_line(table: pd.DataFrame) -> str:
-    """How many claims of each kind end with each verdict, in one sentence a kind."""
+    """How many claims of each kind end with each verdict, in one sentence a kind (the values
+    Table I strikes out counted apart)."""
     parts = []
     for claim, name in (("difference", "CR_total differences"), ("ranking", "best-score rankings")):
         verdicts = table.loc[table["claim"] == claim, "verdict"]
+        struck = int((verdicts == STRUCK).sum())
+        verdicts = verdicts[verdicts != STRUCK]
         if len(verdicts):
             counts = [f"{int((verdicts == v).sum())} {v}" for v in VERDICTS if (verdicts == v).any()]
-            parts.append(f"Of the paper's {len(verdicts)} {name}: {'; '.join(counts)}.")
+            apart = f" ({struck} more {STRUCK})" if struck else ""
+            parts.append(f"Of the paper's {len(verdicts)} {name}{apart}: {'; '.join(counts)}.")
     if not parts:
         return "No claim of the paper to test."
-    n = table.loc[table["claim"] == "difference", ["n_model", "n_baseline"]]
+    n = table.loc[table["claim"] == "difference", "seeds"].str.split("/", expand=True).astype(int) \
+        if (table["claim"] == "difference").any() else pd.DataFrame()
     low, high = (int(n.min().min()), int(n.max().max())) if len(n) else (0, 0)
     seeds = (f" ({low} seeds a model)" if low == high else f" ({low}–{high} seeds a model)") if len(n) else ""
     return f"Summary{seeds}. " + " ".join(parts)
@@ -214,50 +233,68 @@ def _pct(x: float) -> str:
     return f"{x:.0f}" if math.isfinite(x) else "–"
 
 
+def _interval(r: pd.Series) -> str:
+    if not math.isfinite(r["ci_low"]):
+        return f"{signed(r['ours'], 2)} [–]"
+    return f"{signed(r['ours'], 2)} [{signed(r['ci_low'], 2)}, {signed(r['ci_high'], 2)}]"
+
+
+def _difference_lines(diffs: pd.DataFrame, alpha: float) -> list[str]:
+    claims, struck = diffs[diffs["verdict"] != STRUCK], diffs[diffs["verdict"] == STRUCK]
+    lines = [
+        f"Does the paper's ablation reproduce? CR_total, model minus M0, in pp ({len(claims)} claims, "
+        f"Holm-corrected; α = {alpha:g}):",
+        "",
+        "| Scenario | Model | seeds | paper | ours [95% CI] | paper among our seed pairs: percentile, p (Holm) | "
+        "p direction / reversed / smaller / larger (Holm) | verdict | explanation | seeds needed |",
+        "|---|---|---:|---:|---|---|---|---|---|---:|",
+    ]
+    for _, r in claims.iterrows():
+        ps = " / ".join(p_text(r[f"p_{k}"]) for k in KINDS)
+        needed = "–" if pd.isna(r["seeds_needed"]) else str(int(r["seeds_needed"]))
+        lines.append(
+            f"| {r['scenario']} | {r['model']} | {r['seeds']} | {signed(r['paper'], 2)} | {_interval(r)} | "
+            f"{_pct(r['pair_percentile'])}, {p_text(r['p_seed_luck'])} | {ps} | {r['verdict']} | {r['explanation']} "
+            f"| {needed} |")
+    if len(struck):
+        lines += ["", f"Values Table I strikes out ({STRUCK}; no claim, in no family), ours beside them:", "",
+                  "| Scenario | Model | seeds | paper | ours [95% CI] |", "|---|---|---:|---:|---|"]
+        lines += [f"| {r['scenario']} | {r['model']} | {r['seeds']} | {signed(r['paper'], 2)} | {_interval(r)} |"
+                  for _, r in struck.iterrows()]
+    return lines
+
+
 def replication_markdown(table: pd.DataFrame, alpha: float = 0.05) -> str:
     """The replication table as Markdown, with its rules in the notes."""
     diffs = table[table["claim"] == "difference"]
     ranks = table[table["claim"] == "ranking"]
     lines = [summary_line(table), ""]
     if len(diffs):
-        lines += [
-            f"Does the paper's ablation reproduce? CR_total, model minus M0, in pp ({len(diffs)} claims, "
-            f"Holm-corrected; α = {alpha:g}):",
-            "",
-            "| Scenario | Model | seeds | paper | ours [95% CI] | paper among our seed pairs | "
-            "p direction / reversed / smaller / larger (Holm) | verdict | explanation | seeds needed |",
-            "|---|---|---:|---:|---|---|---|---|---|---:|",
-        ]
-        for _, r in diffs.iterrows():
-            where = "inside" if r["paper_inside_pairs"] else "outside"
-            ps = " / ".join(p_text(r[f"p_{k}_holm"]) for k in KINDS)
-            needed = "–" if pd.isna(r["seeds_needed"]) else str(int(r["seeds_needed"]))
-            lines.append(
-                f"| {r['scenario']} | {r['model']} | {r['n_model']}/{r['n_baseline']} | {signed(r['paper'], 2)} | "
-                f"{signed(r['ours'], 2)} [{signed(r['ci_low'], 2)}, {signed(r['ci_high'], 2)}] | "
-                f"percentile {_pct(r['pair_percentile'])}, {where} "
-                f"[{signed(r['pair_low'], 2)}, {signed(r['pair_high'], 2)}] | {ps} | {r['verdict']} | {r['explanation']} | {needed} |")
+        lines += _difference_lines(diffs, alpha)
     if len(ranks):
         lines += ["", "The paper's best composite score per scenario, and how often that model ranks first here:", "",
                   "| Scenario | paper's best | seeds | ranks first here | most often first | verdict |",
                   "|---|---|---:|---:|---|---|"]
         for _, r in ranks.iterrows():
-            lines.append(f"| {r['scenario']} | {r['model']} | {r['n_model']} | {100 * r['probability_first']:.1f} % | "
-                         f"{r['most_often_first']} | {r['verdict']} |")
+            lines.append(f"| {r['scenario']} | {r['model']} | {r['seeds']} | {100 * r['ours']:.1f} % | "
+                         f"{r['explanation'].removeprefix('most often first: ')} | {r['verdict']} |")
     lines += [
         "",
         "Collision rates trimmed as the paper's (each evaluation's best and worst simulation dropped). paper: its "
-        "Table I difference, one seed a model. ours: the mean of seed means minus M0's, with Welch's interval. "
-        "paper among our seed pairs: its percentile among every one-seed-of-the-model minus one-seed-of-M0 "
-        "difference of ours (ties half), inside or outside their central 95 % (in brackets); outside, seed luck "
-        "does not explain it. p: one-sided permutation tests of the difference of seed means in the paper's "
-        "direction: shown in its direction, reversed, smaller than the paper's difference, larger than it; each "
-        "kind Holm-adjusted over the claims. verdict: reversed; reproduced, smaller / larger; reproduced "
-        "(direction shown); not reproduced (smaller shown, direction not); else undecided, with the seeds per "
-        "model that would tell the paper's difference from none at power 0.8 and Holm's level. explanation (claims "
-        "that do not reproduce): seed luck where the paper's difference lies inside our pairs' central 95 %, "
-        "else not seed luck (whether the paper's rules explain it is the rules study's interaction). Ranking: the "
-        "share of whole-seed bootstrap replicates in which the paper's best model has the best composite score "
-        f"here; reproduced at ≥ {100 * (1 - alpha):g} %, not reproduced at ≤ {100 * alpha:g} %.",
+        "Table I difference, one seed a model. ours: the mean of seed means minus M0's, with the comparison "
+        "engine's bootstrap-t interval (– with one seed). paper among our seed pairs: its percentile among every "
+        "one-seed-of-the-model minus one-seed-of-M0 difference of ours (ties half) and the two-sided p of one "
+        "more pair lying as far out, Holm-adjusted over the claims. p: the comparison engine's one-sided tests "
+        "(each model resampled from its own seeds under the null, docs/concepts.md) in the paper's direction: "
+        "shown in its direction, reversed, smaller than the paper's difference, larger than it; each kind "
+        "Holm-adjusted over the claims. verdict: reversed; reproduced, smaller / larger; reproduced (direction "
+        "shown); not reproduced (smaller shown, direction not); else undecided (always with fewer than 2 seeds a "
+        "side), with the seeds per model at which the engine's rule (Welch's t, one-sided, Holm's level over the "
+        "claims still open) shows the paper's difference with power 0.8. explanation (claims that do not "
+        f"reproduce): not seed luck where the pairs' Holm-adjusted p is ≤ {alpha:g}; rare under seed luck where only "
+        f"the unadjusted one is; else seed luck (whether the paper's rules explain it is the rules study's "
+        "interaction). Ranking: the share of whole-seed bootstrap replicates in which the paper's best model has "
+        f"the best composite score here; reproduced at ≥ {100 * (1 - alpha):g} %, not reproduced at ≤ "
+        f"{100 * alpha:g} %, undecided with one seed of a model.",
     ]
     return "\n".join(lines) + "\n"

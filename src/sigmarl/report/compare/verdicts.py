@@ -4,10 +4,10 @@ The unit of replication is the seed: a seed's value is its mean over its simulat
 table's units: collision rates in %, CD in cm, AS in m/s). For each comparison, with d the
 variant's mean of seed means minus the baseline's:
 
-- difference: a two-sided permutation test of d = 0 (`sigmarl.stats.permutation`: exact over
-  every split of the pooled seed means when there are at most 200,000, else 20,000 random
-  splits), whose level holds whatever the seeds' shape; Welch's p is reported beside it;
-- equivalence: two one-sided permutation tests (TOST) of d <= -margin and d >= margin, whose
+- difference: the comparison engine's two-sided test of d = 0 (`sigmarl.stats.engine`: each
+  model resampled from its own seeds under the null, the largest p over its null worlds);
+  Welch's p is reported beside it;
+- equivalence: the engine's two one-sided tests (TOST) of d <= -margin and d >= margin, whose
   p-value is the larger of the two;
 - the p-values of each kind are Holm-adjusted over all the study's comparisons (variants x
   scenarios x metrics), so each kind's family-wise error rate is at most alpha.
@@ -25,7 +25,8 @@ Rules, in order:
 A comparison with fewer than two seeds on a side has no test (p-values NaN, counted as 1 in
 Holm's family) and is undecided.
 
-The interval of d is Welch's (1 - alpha) t-interval, unadjusted.
+The interval of d is the engine's (1 - alpha) bootstrap-t interval, unadjusted (Welch's where
+a side has one seed or no spread).
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ import pandas as pd
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import BY_NAME, METRICS, shown_unit
 from sigmarl.report.format import p_text, seeds_text, signed
-from sigmarl.stats.permutation import permutation_test
+from sigmarl.stats.engine import comparison_test
 from sigmarl.stats.power import seeds_for_difference, seeds_for_equivalence
 from sigmarl.stats.tests import Test, holm, verdict
 from sigmarl.stats.variance import Components, components
@@ -146,8 +147,8 @@ def comparisons(rows: pd.DataFrame, design: Design) -> list[Comparison]:
                 mine = values.get((variant, scenario))
                 if not base or not mine:
                     continue
-                test = permutation_test(np.array([g.mean() for g in mine]), np.array([g.mean() for g in base]),
-                             design.margins[metric])
+                test = comparison_test(np.array([g.mean() for g in mine]), np.array([g.mean() for g in base]),
+                                       design.margins[metric], 1 - design.alpha)
                 out.append(Comparison(scenario, metric, variant, test, components(mine), components(base)))
     return out
 
@@ -255,11 +256,11 @@ def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
     lines += [
         "",
         f"seeds: the model's / {against}'s. difference: model minus {against}, in the table's "
-        "units (pp: percentage points), with Welch's t-interval over seed means. better / worse: a two-sided "
-        "permutation test of the difference of seed means (exact over every split of the pooled seeds up to "
-        "200,000 splits, else 20,000 random ones), Holm-adjusted p ≤ α; Welch p: Welch's t-test, reported, not "
-        "decided on (skewed seeds make it reject too often at few seeds); equivalent: two one-sided permutation "
-        f"tests within the margin ({margins}), Holm-adjusted p ≤ α; "
+        "units (pp: percentage points), with the comparison engine's bootstrap-t interval over seed means. "
+        "better / worse: the comparison engine's two-sided test of the difference of seed means (each model "
+        "resampled from its own seeds under the null; docs/concepts.md), Holm-adjusted p ≤ α; Welch p: "
+        "Welch's t-test, reported, not decided on (skewed seeds make it reject too often at few seeds); "
+        f"equivalent: the engine's two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; "
         "otherwise undecided. seeds needed: seeds per model (and per baseline) for power "
         f"{design.power:g} to reach the easier decision, at Holm's level (at α unadjusted in parentheses), "
         "from the two-level variance of a seed mean (seed-to-seed plus simulations) and the observed "

@@ -77,7 +77,7 @@ def replication_section(d: Draft) -> None:
 
 VERDICTS = Section("verdicts", {
     "verdicts.csv": "each comparison (variant against its baseline, per scenario and metric): the difference "
-                    "with its interval, permutation and Welch p-values, the verdict and the seeds it needs",
+                    "with the comparison engine's interval and p-values, Welch's p, the verdict and the seeds it needs",
     "verdicts.md": "the same as Markdown, a factorial study's interactions under it",
     "interactions.csv": "a factorial study's interactions (difference of differences)"},
     verdicts_section, when="with a baseline and a variant to compare")
@@ -88,15 +88,16 @@ FINDINGS = Section("findings", {
 
 CURVE_VERDICTS = Section("curve_verdicts", {
     "curve_verdicts.csv": "each compared variant's reward against its baseline's per window of 25 iterations "
-                          "(Welch, Holm-adjusted)",
+                          "(the comparison engine, Holm-adjusted)",
     "curve_verdicts.md": "the same as Markdown, and where the curves part",
     "paper_seeds.csv": "with `--compare-paper`: whether the paper's one seed could be one of ours"},
     curve_verdicts_section, when="when training curves are read")
 
 REPLICATION = Section("replication", {
     "replication.csv": "per claim of the paper's Table I (each M1..M5 minus M0 CR_total per scenario, each "
-                       "scenario's best composite score): the paper's number, ours with its interval, the "
-                       "paper's percentile among our one-seed differences, four one-sided Holm-adjusted "
-                       "permutation p-values and the verdict (collision rates trimmed as the paper's)",
+                       "scenario's best composite score; Table I's struck-out values listed apart): the paper's "
+                       "number, ours with its interval, the paper's percentile and p among our one-seed "
+                       "differences, the comparison engine's four one-sided Holm-adjusted p-values, the verdict "
+                       "and its explanation (collision rates trimmed as the paper's)",
     "replication.md": "the same as Markdown"},
     replication_section, when="with `--compare-paper`, over the columns that are the paper's own models, M0 among them")

@@ -23,8 +23,16 @@ def paper_table() -> pd.DataFrame:
 
 def paper_values(models: list[str] | None = None) -> pd.DataFrame:
     """Only the numbers, index (scenario, metric), columns `models` (NaN for unknown names)."""
-    table = paper_table().drop(columns="unit").astype(float)
+    table = paper_table().drop(columns=["unit", "struck_out"]).astype(float)
     return table if models is None else table.reindex(columns=models)
+
+
+def struck_out() -> set[tuple[str, str, str]]:
+    """(scenario, metric, model) of every value Table I strikes out (the csv's `struck_out`
+    column): shown, never a claim."""
+    table = paper_table()
+    return {(scenario, metric, model) for (scenario, metric), names in table["struck_out"].fillna("").items()
+            for model in str(names).split(";") if model}
 
 
 def paper_curves() -> pd.DataFrame:
