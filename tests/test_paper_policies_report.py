@@ -78,3 +78,28 @@ def test_the_committed_rows_are_found_beside_paper_budget_and_read():
     assert {"M0-ITSC24", "M5-ITSC24"} <= set(rows["model"]) and set(rows["source"]) == {"SigmaRL"}
     per = rows.groupby(["model", "rules", "scenario"]).size()
     assert (per == 32).all()  # the study protocol: 32 simulations per scenario
+
+
+def test_each_unreproduced_claim_takes_the_first_explanation_a_measurement_supports():
+    """Hand-made claims, Table I's Δ +2.0 and ours +0.2 unless stated, 14 seeds:
+    - a policy Δ of +1.9 (nearer 2.0 than 0.2) worse than 13 of 14 seeds: the paper's own run;
+    - the same with the reward interaction decided in the paper's direction: the paper's reward;
+    - a policy Δ of +0.5 (nearer ours), seed luck by the replication table: seed luck;
+    - the same, not seed luck: unexplained; a policy worse than only 12 of 14 (< 90 %) too;
+    - a reproduced claim and the baseline's row: `–`."""
+    from sigmarl.report.compare.paper_policies import explain
+
+    def claim(model, policy_delta, lower, claim="difference"):
+        return {"claim": claim, "scenario": "CPM", "model": model, "n_seeds": 14, "seeds_lower": lower,
+                "table_i_delta": 2.0, "ours_delta": 0.2, "policy_delta_paper_rules": policy_delta}
+
+    table = pd.DataFrame([claim("M0", None, 7, "baseline"), claim("M2", 1.9, 13), claim("M3", 1.9, 13),
+                          claim("M4", 0.5, 14), claim("M5", 0.5, 14), claim("M1", 1.9, 12), claim("X", 1.9, 14)])
+    replication = pd.DataFrame({"claim": "difference", "scenario": "CPM",
+                                "model": ["M2", "M3", "M4", "M5", "M1", "X"],
+                                "verdict": ["not reproduced", "not reproduced", "not reproduced", "reversed",
+                                            "not reproduced", "reproduced"],
+                                "explanation": ["rare under seed luck", "seed luck", "seed luck",
+                                                "not seed luck", "rare under seed luck", "–"]})
+    got = explain(table, replication, reward={("CPM", "M3"): True})
+    assert got == ["–", "the paper's own run", "the paper's reward", "seed luck", "unexplained", "unexplained", "–"]

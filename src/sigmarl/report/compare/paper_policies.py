@@ -10,8 +10,19 @@ evaluation's best and worst simulation dropped, as `replication` does):
 - its Mk - M0 under either rules, beside Table I's and ours (mean of seed means).
 
 These are descriptions, not tests: the policies are one draw each, never pooled with our seeds,
-never in the composite score's normalisers nor in a verdict. `explanation` is left for the
-claim's explanation (empty here).
+never in the composite score's normalisers nor in a verdict.
+
+`explanation`, for each claim the replication table does not reproduce (not reproduced, or
+reversed), the first of these that a measurement supports:
+
+- **the paper's reward**: the paper-reward study's interaction (Mk - M0 under the paper's reward
+  normaliser against ours) is decided in the paper's direction;
+- **the paper's own run**: its policy reproduces its difference in our evaluator (its Mk - M0,
+  under the paper's rules, lies nearer Table I's than ours) and lies in our seeds' tail (worse, in
+  the claim's direction, than `TAIL` of our seeds of that model);
+- **seed luck**: the replication table's seed-luck test says the paper's one-seed difference is
+  not rare among our seed pairs;
+- **unexplained**.
 """
 
 from __future__ import annotations
@@ -26,6 +37,8 @@ from sigmarl.report.table.aggregate import trim_collisions
 from sigmarl.report.table.paper import paper_values
 
 METRIC = "CR_total"
+TAIL = 0.9  # "in our seeds' tail": worse than at least this share of our seeds of the model
+NOT_REPRODUCED = ("not reproduced", "reversed")
 RULES = ("paper", "ours")  # the paper's rules (as it is), ours (adapted)
 COLUMNS = [
     "claim", "scenario", "metric", "model", "policy", "n_seeds", "table_i", "ours", "policy_paper_rules",
@@ -72,7 +85,7 @@ def policy_table(rows: pd.DataFrame, imported: pd.DataFrame, models: list[str], 
             record.update(_deltas(model, baseline, scenario, record, ours, policies, paper))
             records.append(record)
     frame = pd.DataFrame(records, columns=COLUMNS)
-    frame["explanation"] = ""  # the claim's explanation, decided elsewhere
+    frame["explanation"] = ""  # the claim's explanation (`explain`, with the replication table)
     frame["seeds_lower_our_rules"] = frame["seeds_lower_our_rules"].astype("Int64")
     return frame
 
@@ -93,6 +106,37 @@ def _deltas(model, baseline, scenario, record, ours, policies, paper) -> dict[st
             "policy_delta_our_rules": record["policy_our_rules"] - base["ours"]}
 
 
+def _own_run(r: pd.Series) -> bool:
+    """The paper's policy reproduces its difference here and lies in our seeds' tail."""
+    claimed, own, ours = r["table_i_delta"], r["policy_delta_paper_rules"], r["ours_delta"]
+    if pd.isna(claimed) or pd.isna(own) or pd.isna(ours) or not r["n_seeds"]:
+        return False
+    worse = r["seeds_lower"] if claimed > 0 else r["n_seeds"] - r["seeds_lower"]
+    return abs(own - claimed) < abs(own - ours) and worse >= TAIL * r["n_seeds"]
+
+
+def explain(table: pd.DataFrame, replication: pd.DataFrame, reward: dict | None = None) -> list[str]:
+    """Each row's explanation (see the module's docstring; `–` for a claim that is not
+    unreproduced); `reward`: (scenario, model) -> True where the paper-reward interaction is
+    decided in the paper's direction (none measured: an empty dict)."""
+    reward = reward or {}
+    keyed = replication[replication["claim"] == "difference"].set_index(["scenario", "model"])
+    out = []
+    for _, r in table.iterrows():
+        key = (r["scenario"], r["model"])
+        if r["claim"] != "difference" or key not in keyed.index or keyed.loc[key, "verdict"] not in NOT_REPRODUCED:
+            out.append("–")
+        elif reward.get(key):
+            out.append("the paper's reward")
+        elif _own_run(r):
+            out.append("the paper's own run")
+        elif keyed.loc[key, "explanation"] == "seed luck":
+            out.append("seed luck")
+        else:
+            out.append("unexplained")
+    return out
+
+
 def _num(x) -> str:
     return "–" if x is None or pd.isna(x) else f"{x:.2f}"
 
@@ -110,12 +154,12 @@ def policy_markdown(table: pd.DataFrame) -> str:
              "(how many of our seed means are lower). Δ: minus M0. The policies are never pooled with our "
              "seeds, nor in the composite score or a verdict.", "",
              "| scenario | model | Table I | ours (seeds) | policy, paper's rules | policy, our rules | rank "
-             "| Δ Table I | Δ ours | Δ policy, paper's rules | Δ policy, our rules |",
-             "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|"]
+             "| Δ Table I | Δ ours | Δ policy, paper's rules | Δ policy, our rules | explanation |",
+             "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---|"]
     for _, r in table.iterrows():
         lines.append(f"| {r['scenario']} | {r['model']} ({r['policy']}) | {_num(r['table_i'])} | "
                      f"{_num(r['ours'])} ({r['n_seeds']}) | {_num(r['policy_paper_rules'])} | "
                      f"{_num(r['policy_our_rules'])} | {r['rank']} | {_delta(r['table_i_delta'])} | "
                      f"{_delta(r['ours_delta'])} | {_delta(r['policy_delta_paper_rules'])} | "
-                     f"{_delta(r['policy_delta_our_rules'])} |")
+                     f"{_delta(r['policy_delta_our_rules'])} | {r['explanation'] or '–'} |")
     return "\n".join(lines) + "\n"
