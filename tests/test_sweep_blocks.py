@@ -57,7 +57,7 @@ def test_what_training_cannot_run_is_refused_at_planning_and_a_critic_per_agent_
 
 
 def test_a_negative_block_size_is_one_line(tmp_path):
-    with pytest.raises(SigmarlError, match="sweep.seeds_per_job must be 0"):
+    with pytest.raises(SigmarlError, match=r"sweep.seeds_per_job must be in 0\.\.4096"):
         plan_sweep(["sweep.seeds_per_job=-2", OFF, f"runs_root={tmp_path}"])
 
 

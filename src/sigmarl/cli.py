@@ -132,10 +132,8 @@ def cmd_report(args: argparse.Namespace) -> None:
         raise SigmarlError("--plan reads a results folder: give it with --from FOLDER")
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config
-    from sigmarl.report.command import ReportOptions
 
     models = None if args.models is None else args.models.split(",")
-    ReportOptions(models=models, animation_steps=args.animations)  # --models '' or --animations -5: one line
     if args.plan:
         from sigmarl.report.seeds.plan import plan_from_folder
 
@@ -148,15 +146,16 @@ def cmd_report(args: argparse.Namespace) -> None:
     if not args.source and (db := missing_store(cfg)):  # nothing to read: create no empty store
         raise SigmarlError(f"nothing to report: no MLflow store at {db}; run `sigmarl sweep` here first, "
                            "point tracking.tracking_uri=... at the study's store, or use --from FOLDER")
-    if args.animations:
-        use_threads(cfg.threads)
-    from sigmarl.report.command import make_report, make_report_from_folder
+    # after the store's check (no store: no pandas); --models '' or --animations -5: one line
+    from sigmarl.report.command import ReportOptions, make_report, make_report_from_folder
 
     options = ReportOptions(latex=args.latex, trim=args.trim, compare_paper=args.compare_paper, models=models, ci=args.ci,
                             figures=not args.no_figures, animation_steps=args.animations, partial=args.partial,
                             scenarios=list(cfg.eval.scenarios) if _sets(args.overrides, "eval.scenarios",
                                                                         "study.scenarios") else None,
                             overrides=tuple(args.overrides))
+    if args.animations:
+        use_threads(cfg.threads)
     out_dir = Path(args.out) if args.out else None
     if args.source:
         report = make_report_from_folder([Path(s) for s in args.source], cfg, out_dir, options)

@@ -11,7 +11,8 @@ from sigmarl.report.draft import Draft
 MAX_LINES = 40
 HEADLINE = "CR_total"  # Table I's headline metric: collisions of either kind, % of steps
 VERDICT_ORDER = ("better", "worse", "equivalent", "undecided")
-_OTHER_LINES = 10  # lines the console report spends besides the table's scenario rows
+LEFT_OUT_LINES = 5  # notes of runs or rows left out, at most (then a count)
+_OTHER_LINES = 17  # lines the console report spends besides the table's scenario rows
 
 
 def console_text(report: Draft, verbose: bool = False) -> str:
@@ -26,6 +27,12 @@ def _short(report: Draft) -> list[str]:
     lines += _headline_table(report)
     if (verdicts := _verdict_counts(report)) is not None:
         lines += ["", verdicts]
+    # what the report left out is said here too: a reader must not miss a missing seed
+    left_out = [n for n in report.notes if "left out" in n]
+    if left_out:
+        lines += ["", *left_out[:LEFT_OUT_LINES]]
+        if len(left_out) > LEFT_OUT_LINES:
+            lines.append(f"... and {len(left_out) - LEFT_OUT_LINES} more left out: table.md's notes")
     names = [p.name for p in report.paths.values()]
     lines += ["", f"{len(names)} files in {out_dir}/: {', '.join(names[:8])}{', ...' if len(names) > 8 else ''}",
               "the full text of table.md, the statistics and verdicts: sigmarl report ... --verbose"]

@@ -19,6 +19,7 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl.ablation import flags_of, paper_model
+from sigmarl.errors import SigmarlError
 from sigmarl.report.compare.verdicts import Design
 from sigmarl.report.table.tables import ResultTable
 
@@ -130,7 +131,7 @@ class Draft:
         """Each column's paper model (M0..M5) by the flags its rows record (their `obs` column, the
         strategies that were on; one declared since was off), None for another design."""
         obs = self.rows.drop_duplicates("model").set_index("model")["obs"].fillna("").astype(str)
-        return {m: paper_model(flags_of(obs.get(m, ""))) for m in self.models}
+        return {m: _paper_model_of(obs.get(m, "")) for m in self.models}
 
     def file(self, key: str, name: str) -> Path:
         """Where the current section's file `name` goes, recorded under `key` (a figure's path)."""
@@ -152,6 +153,15 @@ class Draft:
             path.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n", encoding="utf-8")
         else:
             path.write_text(content, encoding="utf-8")
+
+
+def _paper_model_of(strategies: str) -> str | None:
+    """The paper's model whose strategies a row lists; None for a strategy not declared here
+    (a row of another design is no paper model)."""
+    try:
+        return paper_model(flags_of(strategies))
+    except SigmarlError:
+        return None
 
 
 def check_sections(sections: list[Section]) -> None:
