@@ -40,6 +40,7 @@ PAPER_PAGE, RULES_PAGE, GENERALISATION_PAGE = ("docs/results/paper-study.md", "d
 # marker name -> (report, the report's file, the pages that hold the block)
 BLOCKS = {
     "results-replication": ("paper", "replication.md", (PAPER_PAGE,)),
+    "results-paper-policies": ("paper", "paper_policies.md", (PAPER_PAGE,)),
     "results-table": ("paper", "table.md", ("README.md", PAPER_PAGE)),
     "results-findings": ("paper", "findings.md", (PAPER_PAGE,)),
     "results-statistics": ("paper", "statistics.md", (PAPER_PAGE,)),
