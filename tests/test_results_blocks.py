@@ -37,7 +37,7 @@ def test_results_blocks_are_the_rebuilt_report(tmp_path, monkeypatch):
     script = _script()
     rebuilt = script.report_files()
     assert set(rebuilt) == {"results-table", "results-replication", "results-findings", "results-statistics", "results-training", "results-verdicts",
-                            "results-curves", "results-seeds",
+                            "results-curves", "results-seeds", "results-paper-policies",
                             "generalisation-matrix", "generalisation-verdicts", "rules-verdicts"}
     for page in script.pages():
         text = (ROOT / page).read_text(encoding="utf-8")
