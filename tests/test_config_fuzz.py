@@ -7,7 +7,7 @@ composing, before any run folder or MLflow store exists.
 In-process: Hydra composes the default tree once (as `sigmarl train` would), and each case is
 that tree with one value merged in the way an override's value is (OmegaConf's typed merge),
 then resolved and checked as `compose_config` does (`compose._finish`). The command-line path
-of a few of them (the issue's reproductions) is in test_faults_limits.py and the probes.
+of a few of them (the round's reproductions) is in test_faults_limits.py and the probes.
 """
 
 from __future__ import annotations
@@ -125,7 +125,7 @@ def composed_with(base, key: str, value: Any) -> Config:
 
 
 def test_the_schema_declares_ranges_and_sizes():
-    """The fuzz below has something to try: the keys the issue found unchecked declare ranges."""
+    """The fuzz below has something to try: the keys the fifth round found unchecked declare ranges."""
     ranged = {key: range_of(f) for key, f, _ in leaves() if range_of(f)}
     assert ranged["ppo.gamma"].holds(1.0) and not ranged["ppo.gamma"].holds(math.nextafter(1.0, 2))
     assert not ranged["ppo.clip_epsilon"].holds(1.0) and not ranged["ppo.clip_epsilon"].holds(0.0)

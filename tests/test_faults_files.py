@@ -152,7 +152,7 @@ def test_a_damaged_sweep_plan_is_one_line_naming_it(content, tmp_path):
 @pytest.mark.parametrize("note", [b"[1, 2]", b'{"eval_key": 3, "dtypes": "x"}', b"\xff", b'"rows"'])
 def test_a_damaged_rows_note_means_the_rows_are_measured_again(note, tmp_path):
     from sigmarl.compose import compose_config
-    from sigmarl.evaluation.protocol import _saved_rows, rows_file_for
+    from sigmarl.evaluation.protocol import saved_rows, rows_file_for
 
     run = tmp_path / "M0" / "seed0"
     run.mkdir(parents=True)
@@ -160,4 +160,4 @@ def test_a_damaged_rows_note_means_the_rows_are_measured_again(note, tmp_path):
     (run / "evaluation.json").write_bytes(note)
     cfg = compose_config(["ppo=smoke"])
     assert rows_file_for(run / "best.pt", cfg).parent == run  # no traceback on a note that is not a record
-    assert _saved_rows(run / "evaluation_rows.csv", {"eval_key": "k", "checkpoint_sha256": "s"}) is None
+    assert saved_rows(run / "evaluation_rows.csv", {"eval_key": "k", "checkpoint_sha256": "s"}) is None

@@ -1,4 +1,4 @@
-"""The fifth reliability round's file and folder faults (issue 59: H5, H10-H15): each is one
+"""The fifth reliability round's file and folder faults (H5, H10-H15): each is one
 line and exit code 2, naming what to fix, never a traceback, a hang or a silent choice."""
 
 from __future__ import annotations

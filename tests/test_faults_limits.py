@@ -1,6 +1,6 @@
-"""The fifth reliability round's config faults through the command line (issue 59, H2 and
+"""The fifth reliability round's config faults through the command line (fault H2 and
 H6-H9): each ends in one line and exit code 2 before any run folder or MLflow store exists.
-test_config_fuzz.py covers every key from the schema; these are the issue's reproductions."""
+test_config_fuzz.py covers every key from the schema; these are the round's reproductions."""
 
 from __future__ import annotations
 

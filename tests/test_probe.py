@@ -1,5 +1,5 @@
 """scripts/probe.py, the reliability round in one command: one probe per fault of the rounds
-(F1-F18, G1-G11, and issue 59's N1, N2, H1, H3, H4) and per run-folder promise, every one passing; and its selection by name is
+(F1-F18, G1-G11, and the fifth round's N1, N2, H1, H3, H4) and per run-folder promise, every one passing; and its selection by name is
 exact (`F1` is F1's probe, never F11's)."""
 
 from __future__ import annotations

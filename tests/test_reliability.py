@@ -470,7 +470,7 @@ def test_rows_saved_before_logging_are_logged_without_evaluating_again(trained, 
             "tracking.experiment=t"]
     killed = _cli(args, tmp_path, SIGMARL_CRASH_AT="eval:rows")  # after the rows, before MLflow
     assert killed.returncode == -signal.SIGKILL
-    # a tiny evaluation is not the run's study protocol: its rows go beside the study's (issue 59, N1)
+    # a tiny evaluation is not the run's study protocol: its rows go beside the study's (fault N1)
     [rows_file] = run_dir.glob("evaluation_rows*.csv")
     saved = pd.read_csv(rows_file)
     # evaluating again would be killed at its first scenario

@@ -1,4 +1,4 @@
-"""A killed report's staging folder does not outlive it (issue 59, item 7)."""
+"""A killed report's staging folder does not outlive it (fifth reliability round)."""
 
 from __future__ import annotations
 

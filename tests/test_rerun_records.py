@@ -1,5 +1,5 @@
 """A re-run of a finished run folder whose store lacks its run records one run for the folder,
-however often it is re-run (issue 59, H4): the run id is the folder's `mlflow_run_id`, which the
+however often it is re-run (fault H4): the run id is the folder's `mlflow_run_id`, which the
 first re-run rewrote, not the checkpoint's, which no re-run rewrites."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""`report --from` holds each rows file to the SHA-256 its note records (issue 59, H3): rows
+"""`report --from` holds each rows file to the SHA-256 its note records (fault H3): rows
 edited to other valid values are refused in one line naming the file, or left out under
 --partial; a note from before the field is taken after the rows' checks, said once."""
 

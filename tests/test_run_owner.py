@@ -1,4 +1,4 @@
-"""Never write into what is not ours (issue 59, H1): `run_dir=` naming a folder that holds
+"""Never write into what is not ours (fault H1): `run_dir=` naming a folder that holds
 anything but a run's files is refused in one line, before a single file in it changes; a run
 folder sigmarl wrote, and an empty one, are sigmarl's to write."""
 

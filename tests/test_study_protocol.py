@@ -1,4 +1,4 @@
-"""Results are the study's (issue 59, N1): an evaluation under another protocol (another scenario
+"""Results are the study's (fault N1): an evaluation under another protocol (another scenario
 set, fewer simulations, other steps) is written beside the study's rows, never over them, and a
 report reads the study's protocol only, naming the seeds that lack it."""
 

@@ -1,4 +1,4 @@
-"""A sweep adds no seed trained with other settings to a study's run folders (issue 59, N2):
+"""A sweep adds no seed trained with other settings to a study's run folders (fault N2):
 it refuses in one line, before anything trains, naming the settings that differ."""
 
 from __future__ import annotations

@@ -81,7 +81,9 @@ def test_a_map_of_ones_own(tmp_path, monkeypatch):
     assert info.rstrip().count("[1] My-Map") == 1
     runs = list((tmp_path / "runs" / "my_map").rglob("final.pt"))
     assert len(runs) == 1, runs
-    rows = pd.read_csv(tmp_path / "runs" / "my_map" / "M0" / "seed0" / "evaluation_rows.csv")
+    written = list((tmp_path / "runs" / "my_map" / "M0" / "seed0").glob("evaluation_rows*.csv"))
+    assert [f.name.startswith("evaluation_rows-") for f in written] == [True]  # beside the study's, as the page says
+    rows = pd.read_csv(written[0])
     assert set(rows["scenario"]) == {"My-Map"} and len(rows) == 4
     assert Image.open(tmp_path / "reports" / "animations" / "M0_seed0_My-Map_sim0.gif").n_frames == 100
     # the relative path is read from the folder the command runs in, not from the config's

@@ -14,7 +14,7 @@ from sigmarl.config import Config, as_dict, to_yaml
 from sigmarl.env.paper_rules import rules_label
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import eval_key
-from sigmarl.evaluation.protocol import _save_rows
+from sigmarl.evaluation.protocol import save_rows
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.evaluation.rule_based import RuleBasedDriver
 from sigmarl.identity import fingerprint
@@ -50,7 +50,7 @@ def evaluate_driver(cfg: Config, run: Run, tracker: Tracker, progress: bool = Fa
     rows = driver_rows(cfg, progress)
     run.dir.mkdir(parents=True, exist_ok=True)
     write_atomic(run.config_file, to_yaml(cfg))
-    _save_rows(rows, run.rows_file, {"eval_key": eval_key(cfg.eval), "checkpoint_sha256": CHECKPOINT}, cfg.eval)
+    save_rows(rows, run.rows_file, {"eval_key": eval_key(cfg.eval), "checkpoint_sha256": CHECKPOINT}, cfg.eval)
     tags = {"model": cfg.model, "obs": obs_strategies(cfg.obs), "study": cfg.study.name,
             "fingerprint": fingerprint(cfg), "seed": str(cfg.seed), "train_run_id": "",
             "checkpoint": CHECKPOINT, "eval_key": eval_key(cfg.eval), "driver": cfg.driver.kind}

@@ -162,7 +162,7 @@ def evaluate_imported(path: Path, cfg: Config, model: str, label: str, scenarios
                       progress: bool = True) -> pd.DataFrame:
     """Per-simulation rows of the SigmaRL policy in `path` as model `model` under `cfg.rules`,
     labelled `label` and marked imported (`source`, `policy_sha256`)."""
-    from sigmarl.evaluation.protocol import _sha256
+    from sigmarl.evaluation.protocol import file_sha256
     from sigmarl.evaluation.rollout import evaluate_policy
 
     layers = load_weights(path)
@@ -180,7 +180,7 @@ def evaluate_imported(path: Path, cfg: Config, model: str, label: str, scenarios
     rows.insert(2, "seed", 0)  # one policy: one "seed" of its column
     rows.insert(3, "rules", rules_label(cfg.rules))
     rows["source"] = SOURCE
-    rows["policy_sha256"] = _sha256(path)
+    rows["policy_sha256"] = file_sha256(path)
     return rows
 
 
@@ -189,17 +189,17 @@ def evaluate_rows_of(path: Path, target: str, cfg: Config, model: str, label: st
     the same file, model, label, rules and protocol, or evaluated now and saved there (rows
     first, then their note, `evaluation.json` or `<stem>.json`, as `sigmarl evaluate` keeps them)."""
     from sigmarl.eval_key import eval_key
-    from sigmarl.evaluation.protocol import _save_rows, _saved_rows, _sha256
+    from sigmarl.evaluation.protocol import save_rows, saved_rows, file_sha256
     from sigmarl.paths import ensure_writable
 
     load_weights(path)  # a file that is no such policy is refused before rows are looked up
-    identity = {"eval_key": eval_key(cfg.eval), "policy_sha256": _sha256(path), "source": SOURCE,
+    identity = {"eval_key": eval_key(cfg.eval), "policy_sha256": file_sha256(path), "source": SOURCE,
                 "policy": target, "as_model": model, "label": label, "rules_label": rules_label(cfg.rules),
                 "adaptation": "none" if rules_label(cfg.rules) == "paper" else ADAPTATION}
-    rows = _saved_rows(rows_file, identity)
+    rows = saved_rows(rows_file, identity)
     if rows is not None:
         return rows
     ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use another --out")
     rows = evaluate_imported(path, cfg, model, label, list(cfg.eval.scenarios))
-    _save_rows(rows, rows_file, identity, cfg.eval)
+    save_rows(rows, rows_file, identity, cfg.eval)
     return rows

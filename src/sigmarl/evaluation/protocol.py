@@ -113,16 +113,16 @@ def _read_meta(rows_file: Path) -> dict | None:
 
 def _identity(path: Path, cfg: Config) -> dict[str, str]:
     return {"eval_key": eval_key(cfg.eval),
-            "checkpoint_sha256": _sha256(path)}
+            "checkpoint_sha256": file_sha256(path)}
 
 
-def _sha256(path: Path) -> str:
+def file_sha256(path: Path) -> str:
     """The file's SHA-256, read in blocks: a checkpoint may be larger than the memory to spare."""
     with path.open("rb") as f:
         return hashlib.file_digest(f, "sha256").hexdigest()
 
 
-def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | None:
+def saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | None:
     meta = _read_meta(rows_file)
     if meta is None or {k: meta.get(k) for k in identity} != identity \
             or not rows_measured(rows_file, _meta_path(rows_file), identity["eval_key"]):
@@ -135,7 +135,7 @@ def _saved_rows(rows_file: Path, identity: dict[str, str]) -> pd.DataFrame | Non
         return None
 
 
-def _save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str], eval_cfg: EvalConfig) -> None:
+def save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str], eval_cfg: EvalConfig) -> None:
     """Rows first, then the note saying what they are: a kill in between leaves no note."""
     _meta_path(rows_file).unlink(missing_ok=True)
     text = rows.to_csv(index=False)
@@ -158,14 +158,14 @@ def evaluate_rows(path: Path, cfg: Config, rows_file: Path | None, scenarios=Non
     from sigmarl.training import checkpoint as ckpt
 
     identity = _identity(path, cfg) if rows_file is not None else {}
-    rows = _saved_rows(rows_file, identity) if rows_file is not None else None
+    rows = saved_rows(rows_file, identity) if rows_file is not None else None
     if rows is not None:
         return rows, ckpt.load(path, cfg.device)
     if rows_file is not None:
         ensure_writable(rows_file.parent, "cannot write the evaluation rows there; use --out <file>")
     rows, state = evaluate_checkpoint(path, cfg.eval, scenarios, device=cfg.device, progress=progress)
     if rows_file is not None:
-        _save_rows(rows, rows_file, identity, cfg.eval)
+        save_rows(rows, rows_file, identity, cfg.eval)
     return rows, state
 
 

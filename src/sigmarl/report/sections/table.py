@@ -36,7 +36,7 @@ def study_section(d: Draft) -> None:
     if o.configs is None or o.defaults is None:
         return
     text = study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit)
-    if o.provenance is not None:  # study.md only: table.md's header stays what the rows alone give
+    if o.provenance is not None:  # "study.md" only: table.md's header stays what the rows alone give
         text += "\n" + "\n".join(provenance_markdown(o.provenance, d.models)) + "\n"
     d.write("study", "study.md", text)
 
