@@ -15,6 +15,8 @@ metric): **differs** where the adjusted p of a zero interaction is <= alpha; **s
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 
@@ -94,3 +96,56 @@ def interactions_markdown(table: pd.DataFrame, design: Design) -> str:
         "within the metric's margin; otherwise undecided (always with one seed in a group).",
     ]
     return "\n".join(lines) + "\n"
+
+
+# A claim of the replication table (Mk - M0) beside the study's interaction on it: Mk - M0 under
+# another condition (x against its own baseline) against ours (y = Mk against M0), CR_total.
+CLAIM_COLUMNS = ["interaction", "interaction_seeds", "interaction_difference", "interaction_ci_low",
+                 "interaction_ci_high", "p_interaction", "interaction_verdict"]
+PAPERS_WAY, AGAINST = "paper's direction", "against the paper's direction"
+
+
+def claim_interactions(trimmed: pd.DataFrame, design: Design, claims: pd.DataFrame, baseline: str) -> pd.DataFrame:
+    """`CLAIM_COLUMNS` per row of `claims` (the replication table's), from the design's
+    interactions whose y is the claim's model compared with `baseline`, on CR_total per scenario
+    (the engine's test over their own Holm family). The verdict: **paper's direction** where a zero
+    interaction is rejected and it moves Mk - M0 the way the paper's difference lies, **against
+    the paper's direction** where it is rejected the other way, **same** within the margin, else
+    **undecided** (always with one seed in a group). Empty where the claim has no interaction."""
+    chosen = {name: (x, y) for name, (x, y) in design.interactions.items() if design.baseline_of(y) == baseline}
+    out = pd.DataFrame(index=claims.index, columns=CLAIM_COLUMNS)
+    if not chosen:
+        return out
+    table = interaction_table(trimmed, replace(design, interactions=chosen, metrics=("CR_total",), scenarios=None))
+    by_claim = {(r["scenario"], r["y"]): r for _, r in table.iterrows()}
+    groups = trimmed.groupby("model")["seed"].nunique()
+    for i, claim in claims.iterrows():
+        r = by_claim.get((claim["scenario"], claim["model"]))
+        if r is None or claim["claim"] != "difference":
+            continue
+        seeds = "/".join(str(int(groups.get(m, 0))) for m in (r["x"], r["x_baseline"], r["y"], r["y_baseline"]))
+        way = r["difference"] * claim["paper"] > 0
+        verdict = (PAPERS_WAY if way else AGAINST) if r["verdict"] == "differs" else r["verdict"]
+        out.loc[i] = [r["x"], seeds, r["difference"], r["ci_low"], r["ci_high"], r["p_difference_holm"], verdict]
+    return out
+
+
+def claim_interactions_lines(table: pd.DataFrame) -> list[str]:
+    """The claims that have an interaction, as a Markdown table (none: no lines)."""
+    rows = table[table["interaction_verdict"].notna() & (table["interaction_verdict"] != "")]
+    if not len(rows):
+        return []
+    lines = ["", "Does the other condition explain a claim? Its Mk − M0 against ours (x: the condition's column; "
+             f"difference of differences, CR_total in pp, the comparison engine, {len(rows)} tests Holm-corrected):",
+             "", "| Scenario | Model | x | seeds x / its M0 / Mk / M0 | paper | difference of differences [95% CI] "
+             "| p (Holm) | verdict |", "|---|---|---|---|---:|---|---:|---|"]
+    for _, r in rows.iterrows():
+        lines.append(f"| {r['scenario']} | {r['model']} | {r['interaction']} | {r['interaction_seeds']} | "
+                     f"{signed(r['paper'], 2)} | {signed(r['interaction_difference'], 2)} "
+                     f"[{signed(r['interaction_ci_low'], 2)}, {signed(r['interaction_ci_high'], 2)}] | "
+                     f"{p_text(r['p_interaction'])} | {r['interaction_verdict']} |")
+    lines += ["", "paper's direction: a zero interaction rejected at Holm's level, the condition moving Mk − M0 the "
+              "way the paper's difference lies (then a claim that does not reproduce is explained by it, "
+              "paper_policies.md); against the paper's direction: rejected the other way; same: within the margin by "
+              "two one-sided tests; else undecided (always with one seed in a group)."]
+    return lines

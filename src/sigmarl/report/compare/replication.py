@@ -29,12 +29,14 @@ model) undecided.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import COMPOSITE
-from sigmarl.report.compare.verdicts import seed_values
+from sigmarl.report.compare.interactions import CLAIM_COLUMNS, claim_interactions, claim_interactions_lines
+from sigmarl.report.compare.verdicts import Design, seed_values
 from sigmarl.report.format import p_text, signed
 from sigmarl.report.table.aggregate import trim_collisions
 from sigmarl.report.table.paper import paper_values, struck_out
@@ -47,7 +49,7 @@ STRUCK = "struck out by the paper"
 COLUMNS = [
     "claim", "scenario", "model", "seeds", "paper", "ours", "ci_low", "ci_high", "pair_percentile",
     "p_seed_luck", "p_direction", "p_reversed", "p_smaller", "p_larger", "verdict", "explanation",
-    "seeds_needed",
+    "seeds_needed", *CLAIM_COLUMNS,
 ]  # fmt: skip
 KINDS = ("direction", "reversed", "smaller", "larger")
 
@@ -194,14 +196,18 @@ def ranking_claims(rows: pd.DataFrame, models: list[str], alpha: float = 0.05,
     return pd.DataFrame(records).reindex(columns=COLUMNS)
 
 
-def replication_table(rows: pd.DataFrame, models: list[str], baseline: str = "M0", alpha: float = 0.05
-                      ) -> pd.DataFrame:
-    """Every claim the rows can test: the CR_total differences, then the rankings."""
+def replication_table(rows: pd.DataFrame, models: list[str], baseline: str = "M0", alpha: float = 0.05,
+                      design: Design | None = None) -> pd.DataFrame:
+    """Every claim the rows can test: the CR_total differences, then the rankings; beside each
+    difference, the `design`'s interaction on it where it declares one over the rows' columns
+    (`interactions.claim_interactions`)."""
     trimmed = trim_collisions(rows[rows["model"].isin(models)])
     parts = [difference_claims(trimmed, models, baseline, alpha), ranking_claims(trimmed, models, alpha)]
     parts = [p for p in parts if len(p)]
-    table = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=COLUMNS)
+    table = pd.concat(parts, ignore_index=True).reindex(columns=COLUMNS) if parts else pd.DataFrame(columns=COLUMNS)
     table["seeds_needed"] = table["seeds_needed"].astype("Int64")
+    if design is not None and len(table):
+        table[CLAIM_COLUMNS] = claim_interactions(trim_collisions(rows), replace(design, alpha=alpha), table, baseline)
     return table
 
 
@@ -271,6 +277,8 @@ def replication_markdown(table: pd.DataFrame, alpha: float = 0.05) -> str:
     lines = [summary_line(table), ""]
     if len(diffs):
         lines += _difference_lines(diffs, alpha)
+        if "interaction_verdict" in diffs:
+            lines += claim_interactions_lines(diffs)
     if len(ranks):
         lines += ["", "The paper's best composite score per scenario, and how often that model ranks first here:", "",
                   "| Scenario | paper's best | seeds | ranks first here | most often first | verdict |",

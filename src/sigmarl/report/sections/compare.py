@@ -70,7 +70,7 @@ def replication_section(d: Draft) -> None:
     own = [m for m in d.models if paper[m] == m]
     if "M0" not in own or len(own) < 2:
         return
-    table = replication_table(d.rows, own, "M0", d.design.alpha)
+    table = replication_table(d.rows, own, "M0", d.design.alpha, d.design)
     d.write("replication", "replication.csv", table)
     d.write("replication_md", "replication.md", replication_markdown(table, d.design.alpha) if len(table) else None)
 
@@ -98,6 +98,9 @@ REPLICATION = Section("replication", {
                        "scenario's best composite score; Table I's struck-out values listed apart): the paper's "
                        "number, ours with its interval, the paper's percentile and p among our one-seed "
                        "differences, the comparison engine's four one-sided Holm-adjusted p-values, the verdict "
-                       "and its explanation (collision rates trimmed as the paper's)",
-    "replication.md": "the same as Markdown"},
+                       "and its explanation (collision rates trimmed as the paper's); in a study that declares "
+                       "an interaction on a claim's model (`study=paper_reward`: Mk - M0 under the paper's reward "
+                       "against ours), `interaction_*`: its difference of differences, interval, Holm-adjusted p "
+                       "and verdict (paper's direction, against it, same, undecided)",
+    "replication.md": "the same as Markdown, the interactions in a table of their own"},
     replication_section, when="with `--compare-paper`, over the columns that are the paper's own models, M0 among them")
