@@ -202,14 +202,16 @@ def test_evaluation_key_names_the_maps(monkeypatch, tmp_path):
     assert eval_key(eval_cfg) == key
 
 
-def test_the_evaluation_key_keeps_the_stored_rows_and_follows_the_metric_columns(monkeypatch):
-    """The committed runs' rows keep their key (written before the metrics were hashed); a
-    metric column added since changes the key with no rules revision bump."""
+def test_the_evaluation_key_keeps_the_stored_rows_whatever_the_metric_columns(monkeypatch):
+    """The committed runs' rows keep their key; a metric column declared since leaves it as it
+    is (the key is the protocol: rows without the column read "not measured")."""
     from sigmarl import eval_key as key_module
+    from sigmarl import metrics
 
     run = Path(__file__).resolve().parents[1] / "results/paper-budget/M0/seed0"
     stored = json.loads((run / "evaluation.json").read_text())["eval_key"]
     eval_cfg = compose_config([]).eval
     assert key_module.eval_key(eval_cfg) == stored == "e91834283d7e"
-    monkeypatch.setattr(key_module, "METRIC_COLUMNS", [*key_module.REVISION_METRICS, "TTC"])
-    assert key_module.eval_key(eval_cfg) != stored
+    monkeypatch.setattr(metrics, "METRIC_COLUMNS", [*metrics.METRIC_COLUMNS, "TTC"])
+    monkeypatch.setattr(metrics, "MEASURED", [*metrics.MEASURED, "TTC"])
+    assert key_module.eval_key(eval_cfg) == stored

@@ -1,6 +1,6 @@
 """What makes two evaluations interchangeable: the protocol (scenarios with their maps and
 agents, simulations, steps, seed, checkpoint, and the revision of the environment's rules that
-measured them), and the metric columns they hold. Light to import: a sweep's plan checks it."""
+measured them). Not the metric columns they hold. Light to import: a sweep's plan checks it."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import hashlib
 import json
 
 from sigmarl.config import EvalConfig, as_dict
-from sigmarl.metrics import METRIC_COLUMNS
 from sigmarl.scenarios import scenario, scenario_names
 
 # Revision of how the environment measures. Bump it when a fix changes collision flags or
@@ -16,10 +15,6 @@ from sigmarl.scenarios import scenario, scenario_names
 # 2: lane contacts "beyond the boundary" decided by crossing parity (the nearest-segment side
 # test gave false contacts on CPM).
 RULES_REVISION = 2
-# The metric columns rows of this revision hold. Keys of rows with just these leave them out of
-# the hash (as every key did before the metrics were hashed), so the evaluations stored so far
-# keep their keys; a metric added since changes every key by itself, no revision bump needed.
-REVISION_METRICS = ("CR_AA", "CR_AL", "CR_total", "CD", "AS")
 
 
 def protocol(eval_cfg: EvalConfig) -> dict:
@@ -41,12 +36,10 @@ def protocol_key(eval_cfg: EvalConfig) -> str:
 
 
 def eval_key(eval_cfg: EvalConfig) -> str:
-    """A short hash of the protocol and the metric columns: runs with equal keys are
-    interchangeable. Equal to `protocol_key` while the columns are the revision's own five."""
-    described = protocol(eval_cfg)
-    if tuple(METRIC_COLUMNS) != REVISION_METRICS:
-        described["metrics"] = list(METRIC_COLUMNS)
-    return _hash(described)
+    """The key rows are stored and reused under: the protocol's (`protocol_key`). The metric
+    columns are not part of it: a metric declared later leaves every stored key as it was, and
+    rows without its column read "not measured" (`sigmarl evaluate --add-metrics` measures it)."""
+    return protocol_key(eval_cfg)
 
 
 def _hash(described: dict) -> str:

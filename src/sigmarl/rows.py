@@ -13,13 +13,12 @@ from typing import TYPE_CHECKING
 
 from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
-from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS
+from sigmarl.metrics import AS, BY_NAME, REQUIRED, measured
 from sigmarl.scenarios import scenario_names
 
 if TYPE_CHECKING:
     import pandas as pd
 
-RATES = COLLISION_COLUMNS  # fractions of a simulation's steps
 # Speeds are averaged in float32 and written to 8 significant digits: AS may exceed the top
 # speed (the vehicle's, env.vehicle.max_speed) by rounding only.
 AS_ROUNDING = 1e-4
@@ -27,14 +26,16 @@ AS_ROUNDING = 1e-4
 
 def check_rows(rows: pd.DataFrame, path: Path, top_speed: float = VEHICLE.max_speed) -> pd.DataFrame:
     """`rows` (as read from `path`) if they are evaluation rows a report can trust: the
-    columns, known scenario names, whole simulation numbers, finite metrics, rates in [0, 1]
-    with CR_total = CR_AA + CR_AL, CD >= 0 and AS in [0, top speed]. A truncated or edited
-    file fails here, in one line naming it, instead of adding a made-up scenario or dropping
-    a seed from the table."""
+    columns, known scenario names, whole simulation numbers, and each metric as its declaration
+    in `sigmarl.metrics` says: finite (or NaN where it may be undefined), within its bounds
+    (rates in [0, 1], CD >= 0, AS in [0, top speed]) and equal to the sum it is of (CR_total =
+    CR_AA + CR_AL). A metric declared after the rows were written may be absent (not measured
+    in them). A truncated or edited file fails here, in one line naming it, instead of adding
+    a made-up scenario or dropping a seed from the table."""
     import numpy as np
     import pandas as pd
 
-    missing = [c for c in ("scenario", *METRIC_COLUMNS) if c not in rows.columns]
+    missing = [c for c in ("scenario", *REQUIRED) if c not in rows.columns]
     if missing:
         raise SigmarlError(f"{path}: evaluation rows lack the column(s) {', '.join(missing)}")
 
@@ -47,23 +48,41 @@ def check_rows(rows: pd.DataFrame, path: Path, top_speed: float = VEHICLE.max_sp
     scenario = rows["scenario"].astype(str)
     unknown = ~scenario.isin(scenario_names())  # conf/scenario, a user's folders included
     bad(f"unknown scenario {scenario[unknown].iloc[0] if unknown.any() else ''!r}", unknown)
-    numbers = [c for c in ("simulation", *METRIC_COLUMNS) if c in rows.columns]  # older files lack simulation
+    present = measured(rows)
+    numbers = [c for c in ("simulation", *present) if c in rows.columns]  # older files lack simulation
     metrics = rows[numbers].apply(pd.to_numeric, errors="coerce").astype(float)
-    for column in metrics:
-        bad(f"{column} is not a finite number", ~np.isfinite(metrics[column]))
+    for column in numbers:
+        undefined_ok = column in BY_NAME and BY_NAME[column].undefined
+        values = metrics[column]
+        bad(f"{column} is not a finite number", np.isinf(values) if undefined_ok else ~np.isfinite(values))
     if "simulation" in metrics:
         bad("simulation is not a whole number >= 0", (metrics["simulation"] < 0) | (metrics["simulation"] % 1 != 0))
-    for column in RATES:
-        bad(f"{column} is not a rate in [0, 1]", (metrics[column] < 0) | (metrics[column] > 1))
-    parts = metrics["CR_AA"] + metrics["CR_AL"]
-    bad("CR_total is not CR_AA + CR_AL", (metrics["CR_total"] - parts).abs() > 1e-6 + 1e-5 * parts)
-    bad("CD (cm from the center line) is negative", metrics["CD"] < 0)
-    bad(f"AS (m/s) is not in [0, {top_speed}]", (metrics["AS"] < 0) | (metrics["AS"] > top_speed + AS_ROUNDING))
+    for name in present:
+        _check_metric(BY_NAME[name], metrics, bad, top_speed)
     if "simulation" in metrics:
         bad("a simulation is given twice for its scenario", pd.Series(
             pd.DataFrame({"s": scenario, "n": metrics["simulation"]}).duplicated().to_numpy(), index=rows.index))
         _check_simulations(scenario, metrics["simulation"], path)
     return rows
+
+
+def _check_metric(m, metrics: pd.DataFrame, bad, top_speed: float) -> None:
+    """One declared metric's column: within its bounds (AS's top: the vehicle's top speed, up
+    to rounding), the sum it is of. NaN (where the metric may be undefined) passes."""
+    values = metrics[m.name]
+    lo, hi = m.bounds
+    if m.name == AS:
+        bad(f"{AS} (m/s) is not in [0, {top_speed}]", (values < 0) | (values > top_speed + AS_ROUNDING))
+    elif m.scale == 100.0 and (lo, hi) == (0.0, 1.0):
+        bad(f"{m.name} is not a rate in [0, 1]", (values < lo) | (values > hi))
+    elif hi == float("inf"):
+        unit = {"cm": "cm from the center line"}.get(m.unit, m.unit)
+        bad(f"{m.name} ({unit}) is negative", values < lo)
+    else:
+        bad(f"{m.name} is not in [{lo:g}, {hi:g}]", (values < lo) | (values > hi))
+    if m.sum_of:
+        parts = sum(metrics[p] for p in m.sum_of)
+        bad(f"{m.name} is not {' + '.join(m.sum_of)}", (values - parts).abs() > 1e-6 + 1e-5 * parts)
 
 
 def _check_simulations(scenario: pd.Series, simulation: pd.Series, path: Path) -> None:
