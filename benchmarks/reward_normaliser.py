@@ -22,8 +22,8 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 
 from sigmarl.env import make_env
 from sigmarl.env.paper_rules import COMMAND_LIMIT
-from sigmarl.env.params import VEHICLE
 from sigmarl.env.reward import total_reward
+from sigmarl.params import VEHICLE
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training.loop import load_policy
 

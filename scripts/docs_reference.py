@@ -62,7 +62,7 @@ def cli() -> str:
 
 def config() -> str:
     """Every config group and key: type, default and its help line; top-level keys first."""
-    from sigmarl.config_help import key_help
+    from sigmarl.config.help import key_help
 
     header = ["| key | type | default | help |", "|---|---|---|---|"]
     keys = key_help()
@@ -75,7 +75,7 @@ def config() -> str:
 
 
 def _key_row(k) -> str:
-    from sigmarl.config_help import shown
+    from sigmarl.config.help import shown
 
     return f"| `{k.key}` | `{_cell(k.type)}` | `{_cell(shown(k.default))}` | {_cell(k.help)} |"
 
@@ -128,7 +128,7 @@ def scenarios() -> str:
 
 
 def _room(name: str) -> str:
-    """A room as its file or folder in src/sigmarl/ (`errors.py`, `tracking/`, `env/params.py`),
+    """A room as its file or folder in src/sigmarl/ (`errors.py`, `tracking/`, `config/`),
     or in src/ for one outside the package."""
     path = Path(*name.split("."))
     if name == "sigmarl":

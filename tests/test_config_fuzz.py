@@ -1,6 +1,6 @@
 """Every config key fuzzed, from the schema: no key is named here, so a key added to a config
 record is fuzzed the day it is added. Each key is given a value of the wrong type, the values
-just outside the range declared on its field (`sigmarl.ranges`), and, where it is a size,
+just outside the range declared on its field (`sigmarl.config.ranges`), and, where it is a size,
 absurd sizes; each must be refused in one line (SigmarlError, the CLI's exit code 2) while
 composing, before any run folder or MLflow store exists.
 
@@ -25,8 +25,8 @@ from omegaconf import OmegaConf
 
 from sigmarl.compose import _bad_override, _compose, _finish
 from sigmarl.config import Config
+from sigmarl.config.ranges import Range, range_of
 from sigmarl.errors import SigmarlError
-from sigmarl.ranges import Range, range_of
 
 ABSURD = (10**12, 10**30)
 

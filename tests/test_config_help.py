@@ -10,8 +10,8 @@ import textwrap
 import pytest
 
 from sigmarl.cli import main
-from sigmarl.config_help import key_help
-from sigmarl.suggest import schema_keys
+from sigmarl.config.help import key_help
+from sigmarl.config.suggest import schema_keys
 
 
 def test_every_config_key_has_a_help_line():
@@ -19,7 +19,7 @@ def test_every_config_key_has_a_help_line():
     assert [k.key for k in keys] == schema_keys()  # every key of the schema, in its order
     missing = [k.key for k in keys if not k.help]
     assert not missing, (f"config keys without a help line: {missing}; write a string literal on the "
-                         "line after the field in src/sigmarl/config.py")
+                         "line after the field in its group's module of src/sigmarl/config/")
     too_long = [k.key for k in keys if not k.group and (len(k.help) > 250 or "\n" in k.help)]
     assert not too_long, f"help lines longer than one line: {too_long}"
 
@@ -92,7 +92,7 @@ def test_train_help_lists_every_key(capsys):
 
 
 def test_a_computed_float_default_is_shown_as_typed():
-    from sigmarl.config_help import describe, shown
+    from sigmarl.config.help import describe, shown
 
     assert shown(0.15 * 7 / 30) == "0.035" and shown(2e-4) == "0.0002" and shown([256, 256]) == "[256, 256]"
     assert shown(1e-12) == "1e-12" and shown(True) == "True" and shown("cpm") == "'cpm'"

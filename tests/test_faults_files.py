@@ -152,7 +152,7 @@ def test_a_damaged_sweep_plan_is_one_line_naming_it(content, tmp_path):
 @pytest.mark.parametrize("note", [b"[1, 2]", b'{"eval_key": 3, "dtypes": "x"}', b"\xff", b'"rows"'])
 def test_a_damaged_rows_note_means_the_rows_are_measured_again(note, tmp_path):
     from sigmarl.compose import compose_config
-    from sigmarl.evaluation.protocol import saved_rows, rows_file_for
+    from sigmarl.evaluation.protocol import rows_file_for, saved_rows
 
     run = tmp_path / "M0" / "seed0"
     run.mkdir(parents=True)

@@ -223,7 +223,7 @@ def test_the_architecture_page_draws_its_floor_table_from_the_floors():
     assert page.count("<!-- generated: floors -->") == 1  # the table is not written by hand
     rows = [line for line in docs.expand(page).splitlines() if line.startswith("| ") and line.split(" | ")[0][2:3].isdigit()]
     assert [r.split(" | ")[0] for r in rows] == [f"| {i} {f.name}" for i, f in reversed(list(enumerate(FLOORS)))]
-    assert "`tracking/`" in rows[-4] and "`env/params.py`" in rows[-1]  # packages as folders, modules as files
+    assert "`tracking/`" in rows[-4] and "`params.py`" in rows[-1] and "`config/`" in rows[-2]  # packages as folders, modules as files
     assert "Imports up a floor: " + ("none." if not UPWARD else f"{len(UPWARD)},") in docs.expand(page)
 
 

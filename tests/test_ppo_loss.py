@@ -137,7 +137,7 @@ def test_the_loss_scores_the_collected_actions_like_the_sampler(setup) -> None:
 
 
 def test_unknown_loss_is_rejected(tmp_path) -> None:
-    # at composition, before anything trains (sigmarl.validate); torchrl's loss is the tests' oracle only
+    # at composition, before anything trains (sigmarl.compose.validate); torchrl's loss is the tests' oracle only
     for name in ("clipped", "torchrl"):
         with pytest.raises(SigmarlError, match="ppo.loss"):
             compose_config(["tracking.enabled=false", "ppo=smoke", f"ppo.loss={name}", f"run_dir={tmp_path}"])

@@ -9,7 +9,7 @@ import math
 import pytest
 import torch
 
-from sigmarl.driver_config import DriverConfig
+from sigmarl.config.driver import DriverConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.evaluation.rule_based import RuleBasedDriver, idm_acceleration, pure_pursuit_steering
 

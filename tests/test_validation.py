@@ -95,7 +95,7 @@ def test_the_activation_choices_are_the_networks():
     from dataclasses import fields
 
     from sigmarl.config import NetworkConfig
-    from sigmarl.ranges import range_of
+    from sigmarl.config.ranges import range_of
     from sigmarl.training.networks import ACTIVATIONS
 
     (activation,) = [f for f in fields(NetworkConfig) if f.name == "activation"]

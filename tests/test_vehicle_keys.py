@@ -11,7 +11,7 @@ import torch
 from cli_errors import one_line_exit_2
 
 from sigmarl.compose import compose_config
-from sigmarl.env.params import DT
+from sigmarl.params import DT
 
 OFF = "tracking.enabled=false"
 

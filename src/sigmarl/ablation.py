@@ -15,8 +15,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from sigmarl.env.params import NORMALISERS as N
 from sigmarl.errors import SigmarlError
+from sigmarl.params import NORMALISERS as N
 
 OWN, OTHER = "own", "other"  # a block's part: once per agent, or once per observed neighbour
 

@@ -26,9 +26,9 @@ def _resolve_map(name: str, overrides: Sequence[str]):
     """A map by config name (conf/map/<name>.yaml) or by OSM file path."""
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
     from sigmarl.compose import compose_config
+    from sigmarl.compose.validate import check_map
+    from sigmarl.config.suggest import did_you_mean
     from sigmarl.maps import load_map, map_config
-    from sigmarl.suggest import did_you_mean
-    from sigmarl.validate import check_map
 
     # a map's name in any case (`maps show CPM`): the config files are lower case
     name = {n.lower(): n for n in _map_names()}.get(name.lower(), name)
@@ -237,7 +237,7 @@ def _info(parser: argparse.ArgumentParser, key: str | None, namespace: argparse.
         parser.exit(2, f"sigmarl: error: {e}\n")
     if key:
         # lazy: config_help's dataclass introspection costs `sigmarl --help` a third of its start-up
-        from sigmarl.config_help import describe
+        from sigmarl.config.help import describe
 
         try:
             return describe(key)
@@ -260,7 +260,7 @@ class _KeysHelp(argparse.RawDescriptionHelpFormatter):
     def add_text(self, text: str | None) -> None:
         if text in (_KEYS, _EVAL_KEYS):
             # lazy: config_help's dataclass introspection costs `sigmarl --help` a third of its start-up
-            from sigmarl.config_help import keys_epilog
+            from sigmarl.config.help import keys_epilog
 
             text = keys_epilog("eval." if text == _EVAL_KEYS else "")
         super().add_text(text)

@@ -9,9 +9,9 @@ import shlex
 from importlib import metadata
 
 import sigmarl
+from sigmarl.config.suggest import schema_keys
 from sigmarl.paths import conf_dir, user_conf_dirs
 from sigmarl.scenarios import scenario_names
-from sigmarl.suggest import schema_keys
 
 GROUPS = ("map", "obs", "network", "ppo", "rules", "study", "hydra/launcher")
 BUILTIN_LAUNCHERS = ("basic", "joblib")  # Hydra's own and the joblib plugin's, not in conf/

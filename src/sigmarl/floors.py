@@ -7,8 +7,7 @@ up a floor unless `UPWARD` names it with its reason) and the architecture page's
 is drawn from it (`scripts/docs_reference.py`).
 
 A room is a module or a package (all of its modules); the longest name that holds a module
-decides its floor, so `sigmarl.env.params` (the paper's constants) can sit lower than the
-rest of `sigmarl.env`. The top package, `sigmarl`, is a room of its own module only.
+decides its floor. The top package, `sigmarl`, is a room of its own module only.
 """
 
 from __future__ import annotations
@@ -24,16 +23,14 @@ class Floor(NamedTuple):
 
 FLOORS: tuple[Floor, ...] = (
     Floor("ground", "the errors a user can cause, the run folder, crash points, a job's resources and "
-          "progress lines, what values a config key takes, the paper's vocabulary and constants, the metrics' records, the study-free "
+          "progress lines, the paper's vocabulary and constants, the metrics' records, the study-free "
           "statistics, and the floors' own list",
           ("sigmarl", "sigmarl.errors", "sigmarl.crash", "sigmarl.run", "sigmarl.block_membership",
-           "sigmarl.resources", "sigmarl.ranges", "sigmarl.progress", "sigmarl.ablation", "sigmarl.env.params", "sigmarl.metrics",
+           "sigmarl.resources", "sigmarl.progress", "sigmarl.ablation", "sigmarl.params", "sigmarl.metrics",
            "sigmarl.stats", "sigmarl.floors")),
-    Floor("config records", "the structured-config schema and its groups' records; every key's help "
-          "line; \"did you mean\"",
-          ("sigmarl.config", "sigmarl.reward_config", "sigmarl.vehicle_config", "sigmarl.driver_config",
-           "sigmarl.rules_config", "sigmarl.config_help",
-           "sigmarl.suggest")),
+    Floor("config records", "the structured-config schema and its groups' records, one module a group; "
+          "what values a key takes; every key's help line; \"did you mean\"",
+          ("sigmarl.config",)),
     Floor("readers and identity", "the checked readers of damageable files, evaluation rows' checks, "
           "where the config tree is, the scenarios, a run's identity, what makes two evaluations "
           "interchangeable, what a policy reads, which folders are sigmarl's to write",
@@ -46,7 +43,7 @@ FLOORS: tuple[Floor, ...] = (
     Floor("env", "the VMAS scenario and its tensor kernels", ("sigmarl.env",)),
     Floor("composition", "a command's config composed by Hydra and checked whole (its scenarios' "
           "maps loaded to count their room)",
-          ("sigmarl.compose", "sigmarl.validate")),
+          ("sigmarl.compose",)),
     Floor("training", "MAPPO: networks, losses, the loop, checkpoints, metrics.csv", ("sigmarl.training",)),
     Floor("evaluation", "test-mode rollouts, the evaluation protocol, animations", ("sigmarl.evaluation",)),
     Floor("sweep and report", "the multirun and the report, side by side",

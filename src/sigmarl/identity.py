@@ -18,11 +18,11 @@ from typing import TYPE_CHECKING, Any
 
 from sigmarl.ablation import later_flags
 from sigmarl.config import as_dict, flatten
-from sigmarl.driver_config import ADDED_KEYS as DRIVER_KEYS
+from sigmarl.config.driver import ADDED_KEYS as DRIVER_KEYS
+from sigmarl.config.reward import ADDED_KEYS as REWARD_KEYS
+from sigmarl.config.rules import ADDED_KEYS as RULES_KEYS
+from sigmarl.config.vehicle import ADDED_KEYS as VEHICLE_KEYS
 from sigmarl.errors import SigmarlError
-from sigmarl.reward_config import ADDED_KEYS as REWARD_KEYS
-from sigmarl.rules_config import ADDED_KEYS as RULES_KEYS
-from sigmarl.vehicle_config import ADDED_KEYS as VEHICLE_KEYS
 
 if TYPE_CHECKING:
     from sigmarl.config import Config

@@ -11,9 +11,9 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import AS, BY_NAME, REQUIRED, measured
+from sigmarl.params import VEHICLE
 from sigmarl.scenarios import scenario_names
 
 if TYPE_CHECKING:

@@ -1,6 +1,6 @@
 """Traffic environment: a batched VMAS scenario (dynamics, observation, reward, collisions, resets).
 
-`make_env` is imported on first use: `sigmarl.env.params` (the paper's constants) is read by
+`make_env` is imported on first use: `sigmarl.params` (the paper's constants) is read by
 code that needs no simulator, and importing VMAS and torchrl costs seconds.
 """
 

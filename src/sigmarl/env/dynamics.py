@@ -15,7 +15,7 @@ import torch
 from torch import Tensor
 
 from sigmarl.env.geometry import wrap_angle
-from sigmarl.env.params import DT, VEHICLE
+from sigmarl.params import DT, VEHICLE
 
 L_R, WHEELBASE = VEHICLE.l_r, VEHICLE.wheelbase
 

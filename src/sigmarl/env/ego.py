@@ -15,8 +15,8 @@ from sigmarl.env.collision import (
     segments_box_overlap,
 )
 from sigmarl.env.geometry import rect_corners
-from sigmarl.env.params import VEHICLE
 from sigmarl.env.route_bank import CENTER, HALF_DIAGONAL, RouteBank
+from sigmarl.params import VEHICLE
 
 LENGTH, WIDTH = VEHICLE.length, VEHICLE.width
 # Windows of points around an agent's progress index (spacing 0.08 m). Boundary distances and

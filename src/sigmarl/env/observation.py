@@ -12,7 +12,7 @@ import torch
 
 from sigmarl.ablation import OWN, layout
 from sigmarl.env.geometry import rotate, to_local, wrap_angle
-from sigmarl.env.params import NORMALISERS, VEHICLE
+from sigmarl.params import NORMALISERS, VEHICLE
 
 if TYPE_CHECKING:
     from sigmarl.config import ObsConfig

@@ -21,9 +21,9 @@ import torch
 from sigmarl.env.collision import nearest_on_segments, segment_table
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.geometry import wrap_angle
-from sigmarl.env.params import NORMALISERS, VEHICLE
 from sigmarl.env.route_bank import follow_line, segment_distances
 from sigmarl.maps.routes import extend_straight, join_polylines
+from sigmarl.params import NORMALISERS, VEHICLE
 
 if TYPE_CHECKING:
     from sigmarl.config import RulesConfig

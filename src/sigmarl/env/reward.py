@@ -8,10 +8,10 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from sigmarl.env.params import DT, REWARD, VEHICLE
+from sigmarl.params import DT, REWARD, VEHICLE
 
 if TYPE_CHECKING:
-    from sigmarl.reward_config import RewardConfig
+    from sigmarl.config.reward import RewardConfig
 
 
 def decay(x: torch.Tensor, a: float, b: float) -> torch.Tensor:

@@ -22,8 +22,8 @@ import numpy as np
 import torch
 
 from sigmarl.env.collision import segment_table
-from sigmarl.env.params import VEHICLE
 from sigmarl.maps.model import RoadMap
+from sigmarl.params import VEHICLE
 
 CENTER = 0
 HALF_DIAGONAL = VEHICLE.half_diagonal

@@ -24,18 +24,18 @@ from vmas.simulator.scenario import BaseScenario
 from sigmarl.env import paper_rules as paper
 from sigmarl.env.ego import LENGTH, WIDTH, EgoTables
 from sigmarl.env.observation import WORLD_SIZE, ObsInputs, build_observation
-from sigmarl.env.params import DT
 from sigmarl.env.resets import Resets
 from sigmarl.env.route_bank import RouteBank
 from sigmarl.env.spawn import spawn_index_range
 from sigmarl.env.step_phases import StepPhases
 from sigmarl.env.streams import SeedStreams
 from sigmarl.maps.model import RoadMap
+from sigmarl.params import DT
 
 if TYPE_CHECKING:
     from sigmarl.config import ObsConfig, RulesConfig
-    from sigmarl.reward_config import RewardConfig
-    from sigmarl.vehicle_config import VehicleConfig
+    from sigmarl.config.reward import RewardConfig
+    from sigmarl.config.vehicle import VehicleConfig
 
 
 @dataclass(frozen=True)

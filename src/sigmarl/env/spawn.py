@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import torch
 
-from sigmarl.env.params import VEHICLE
 from sigmarl.env.route_bank import RouteBank
 from sigmarl.env.streams import SeedStreams
 from sigmarl.errors import SigmarlError
 from sigmarl.maps.model import RESAMPLE_STEP
+from sigmarl.params import VEHICLE
 
 MIN_GAP = 1.2 * VEHICLE.diagonal  # 0.2147 m
 MAX_TRIES = 200

@@ -12,8 +12,8 @@ from sigmarl.env import paper_rules as paper
 from sigmarl.env.collision import pairwise_box_overlap
 from sigmarl.env.dynamics import bicycle_step
 from sigmarl.env.ego import LENGTH, WIDTH
-from sigmarl.env.params import DT
 from sigmarl.env.reward import RewardInputs, reward_terms, total_reward
+from sigmarl.params import DT
 
 
 class StepPhases:

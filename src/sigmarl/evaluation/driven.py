@@ -10,6 +10,7 @@ from __future__ import annotations
 import pandas as pd
 
 from sigmarl.ablation import obs_strategies
+from sigmarl.compose.validate import check_eval
 from sigmarl.config import Config, as_dict, to_yaml
 from sigmarl.env.paper_rules import rules_label
 from sigmarl.errors import SigmarlError
@@ -21,7 +22,6 @@ from sigmarl.identity import fingerprint
 from sigmarl.run import Run, write_atomic
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker
-from sigmarl.validate import check_eval
 
 CHECKPOINT = "none (rule-based driver)"  # what its rows and its record give for a checkpoint
 

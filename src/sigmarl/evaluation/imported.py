@@ -189,7 +189,7 @@ def evaluate_rows_of(path: Path, target: str, cfg: Config, model: str, label: st
     the same file, model, label, rules and protocol, or evaluated now and saved there (rows
     first, then their note, `evaluation.json` or `<stem>.json`, as `sigmarl evaluate` keeps them)."""
     from sigmarl.eval_key import eval_key
-    from sigmarl.evaluation.protocol import save_rows, saved_rows, file_sha256
+    from sigmarl.evaluation.protocol import file_sha256, save_rows, saved_rows
     from sigmarl.paths import ensure_writable
 
     load_weights(path)  # a file that is no such policy is refused before rows are looked up

@@ -15,6 +15,7 @@ import pandas as pd
 
 from sigmarl import crash
 from sigmarl.ablation import obs_strategies
+from sigmarl.compose.validate import check_eval
 from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.env.paper_rules import rules_label
 from sigmarl.eval_key import RULES_REVISION, eval_key, protocol, protocol_key
@@ -29,7 +30,6 @@ from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.tracking import Tracker, open_tracker
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training.loop import load_policy
-from sigmarl.validate import check_eval
 
 
 def evaluate_checkpoint(path: Path, eval_cfg: EvalConfig, scenarios: list[str] | None = None,

@@ -23,11 +23,11 @@ from collections.abc import Callable
 import torch
 from torch import Tensor
 
-from sigmarl.driver_config import DriverConfig
+from sigmarl.config.driver import DriverConfig
 from sigmarl.env.ego import LENGTH
 from sigmarl.env.geometry import wrap_angle
-from sigmarl.env.params import DT, VEHICLE
 from sigmarl.maps.model import RESAMPLE_STEP
+from sigmarl.params import DT, VEHICLE
 
 IDM_EXPONENT = 4  # IDM's free-road exponent (Treiber, Hennecke and Helbing 2000)
 _MIN_GAP = 1e-3  # m: a gap at or below zero (touching) reads as this, so IDM brakes hard

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from sigmarl.block_membership import check_membership, read_block
 from sigmarl.compose import compose_config, compose_seeds
+from sigmarl.compose.validate import check_eval, seeds_per_job
 from sigmarl.config import SEED_MAX, Config, StudyConfig
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import eval_key
@@ -26,7 +27,6 @@ from sigmarl.identity import check_label, differences, fingerprint
 from sigmarl.policy_input import check_variant
 from sigmarl.run import Run
 from sigmarl.sweep.command import Command, override_key, read_command, slug
-from sigmarl.validate import check_eval, seeds_per_job
 
 
 @dataclass

@@ -23,6 +23,7 @@ import torch
 
 from sigmarl import crash
 from sigmarl.block_membership import block_name, check_membership, write_membership
+from sigmarl.compose.validate import check
 from sigmarl.config import Config, PPOConfig, as_dict
 from sigmarl.env.factory import check_room
 from sigmarl.errors import SigmarlError
@@ -39,7 +40,6 @@ from sigmarl.training.learner import Learner, iteration_seed
 from sigmarl.training.networks import make_actor
 from sigmarl.training.ppo_loss import resolve_precision
 from sigmarl.training.records import SeedRun, commit_checkpoints, finish_records, settle_checkpoints
-from sigmarl.validate import check
 
 __all__ = ["TrainResult", "iteration_seed", "learning_rate", "load_policy", "train", "train_block"]
 

@@ -35,7 +35,7 @@ PREIMAGE = ("agents", "action_preimage")  # the Gaussian sample before tanh
 LOC, SCALE = ("agents", "loc"), ("agents", "scale")
 VALUE = ("agents", "state_value")
 
-# the choices of network.activation (sigmarl.validate.Activation, checked at composition)
+# the choices of network.activation (sigmarl.compose.validate.Activation, checked at composition)
 ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 
 

@@ -35,7 +35,11 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import COMPOSITE
-from sigmarl.report.compare.interactions import CLAIM_COLUMNS, claim_interactions, claim_interactions_lines
+from sigmarl.report.compare.interactions import (
+    CLAIM_COLUMNS,
+    claim_interactions,
+    claim_interactions_lines,
+)
 from sigmarl.report.compare.verdicts import Design, seed_values
 from sigmarl.report.format import p_text, signed
 from sigmarl.report.table.aggregate import trim_collisions

@@ -24,9 +24,9 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl.ablation import MODELS, TIMINGS
-from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
+from sigmarl.params import VEHICLE
 from sigmarl.readers import read_training_curve
 from sigmarl.report.inputs.coverage import run_state
 from sigmarl.rows import check_rows, note_protocol

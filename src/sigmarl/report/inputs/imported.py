@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from sigmarl.env.params import VEHICLE
 from sigmarl.errors import SigmarlError
+from sigmarl.params import VEHICLE
 from sigmarl.rows import check_rows
 from sigmarl.run import ROWS_FILE
 

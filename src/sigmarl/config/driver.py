@@ -46,7 +46,7 @@ def check_driver(driver: DriverConfig) -> None:
     from sigmarl.errors import SigmarlError
 
     if driver.kind not in DRIVERS:
-        close = difflib.get_close_matches(driver.kind, DRIVERS, n=1)  # not sigmarl.suggest: it imports the config
+        close = difflib.get_close_matches(driver.kind, DRIVERS, n=1)  # not sigmarl.config.suggest: it imports the config
         raise SigmarlError(f"driver.kind must be one of {', '.join(DRIVERS)}, got {driver.kind!r}"
                            + (f" (did you mean {close[0]}?)" if close else ""))
     for f in fields(driver):

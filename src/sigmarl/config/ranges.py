@@ -1,5 +1,5 @@
 """What values a config key takes, declared once on its field (`ranged(...)` is a dataclass
-`field` whose metadata holds a `Range`): `sigmarl.validate` checks every key against it, and the
+`field` whose metadata holds a `Range`): `sigmarl.compose.validate` checks every key against it, and the
 schema-driven fuzz test (tests/test_config_fuzz.py) tries the values just outside it, so that a
 new key with a range is checked and fuzzed without being named anywhere else.
 
@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from typing import Any
 
 INF = math.inf
+# numpy's legacy generator (np.random.seed) takes seeds in 0..2**32-1, torch any up to 2**64-1
+SEED_MAX = 2**32 - 1
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,5 @@
 """The reward as config keys (`env.reward.*`): each term's weight and the scales of its
-shaping functions, the paper's values by default (`sigmarl.env.params.REWARD`), so that a
+shaping functions, the paper's values by default (`sigmarl.params.REWARD`), so that a
 study can ablate them like any other setting. `sigmarl.env.reward` reads them."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from sigmarl.env.params import REWARD
-from sigmarl.ranges import ranged
+from sigmarl.config.ranges import ranged
+from sigmarl.params import REWARD
 
 
 @dataclass

@@ -19,13 +19,13 @@ from pathlib import Path
 from typing import Literal, get_args
 
 from sigmarl.config import Config, EvalConfig, MapConfig
-from sigmarl.driver_config import check_driver
+from sigmarl.config.driver import check_driver
+from sigmarl.config.ranges import check_ranges
+from sigmarl.config.reward import check_reward
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import LABEL_RULE, check_label, is_label
 from sigmarl.metrics import metric
 from sigmarl.paths import conf_dir, config_files
-from sigmarl.ranges import check_ranges
-from sigmarl.reward_config import check_reward
 from sigmarl.scenarios import Scenario, scenario, scenario_names
 from sigmarl.tracking.tracker import tracker_class
 
@@ -52,7 +52,7 @@ def device_type(device: str) -> str:
 def check(cfg: Config) -> Config:
     """`cfg` if every value is usable; otherwise one SigmarlError naming the key."""
     check_finite(cfg)
-    check_ranges(cfg)  # each key's own range, declared on its field (`sigmarl.ranges`)
+    check_ranges(cfg)  # each key's own range, declared on its field (`sigmarl.config.ranges`)
     check_map(cfg.map)
     obs = cfg.obs
     if obs.n_ref_points * obs.ref_point_stride > MAX_REF_REACH:

@@ -1,5 +1,5 @@
 """The vehicle's limits as config keys (`env.vehicle.*`): the CPM Lab vehicle's by default
-(`sigmarl.env.params.VEHICLE`), so that a study can ablate them like any other setting. The
+(`sigmarl.params.VEHICLE`), so that a study can ablate them like any other setting. The
 environment clamps the policy's commands to them; the observation's and the reward's speed
 scales stay the paper's, so that a policy sees and is paid on one scale whatever it drives."""
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from sigmarl.env.params import VEHICLE
-from sigmarl.ranges import ranged
+from sigmarl.config.ranges import ranged
+from sigmarl.params import VEHICLE
 
 
 @dataclass

@@ -21,13 +21,13 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from sigmarl.compose.validate import check
 from sigmarl.config import Config, as_config, register_configs
+from sigmarl.config.suggest import hydra_error_message, unknown_keys_message
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import fingerprint
 from sigmarl.paths import conf_dir, user_conf_dirs
 from sigmarl.readers import check_config_dir
-from sigmarl.suggest import hydra_error_message, unknown_keys_message
-from sigmarl.validate import check
 
 
 def search_path_override() -> list[str]:
@@ -39,7 +39,7 @@ def search_path_override() -> list[str]:
 
 
 def compose_config(overrides: Sequence[str] = (), config_name: str = "config") -> Config:
-    """The resolved config, checked (`sigmarl.validate.check`) and fingerprinted; a bad override
+    """The resolved config, checked (`sigmarl.compose.validate.check`) and fingerprinted; a bad override
     or value raises SigmarlError with a message that names the key."""
     return _finish(_compose(overrides, config_name), OmegaConf.structured(Config))
 

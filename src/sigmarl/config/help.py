@@ -87,7 +87,7 @@ def describe(query: str) -> str:
     hits = [k for k in keys if k.key == query or k.key.startswith(query + ".")]
     if not hits:
         # lazy: the parser's key list is built without omegaconf (start-up)
-        from sigmarl.suggest import did_you_mean
+        from sigmarl.config.suggest import did_you_mean
 
         raise SigmarlError(f"no config key {query!r}{did_you_mean(query, [k.key for k in keys])}; "
                            "sigmarl --info lists the groups")
