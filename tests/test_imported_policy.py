@@ -136,3 +136,32 @@ def test_a_short_real_evaluation_of_the_shipped_m5_writes_rows_marked_imported(t
     written = (out / "evaluation_rows.csv").stat().st_mtime_ns
     assert main(args) == 0
     assert (out / "evaluation_rows.csv").stat().st_mtime_ns == written
+
+
+def test_the_shipped_m5_animates_as_it_drives_in_its_evaluation(tmp_path, capsys):
+    """`evaluate paper:M5 --animate`: a GIF of one frame per step, titled with the column and its
+    rules, never without its rules being the paper's or ours."""
+    import imageio.v3 as iio
+
+    out = tmp_path / "animations"
+    assert main(["evaluate", "paper:M5", "--animate", "Roundabout", "--frames", "3", "rules=paper",
+                 "--animate-dir", str(out), "eval.n_sims=2"]) == 0
+    gif = out / "M5-ITSC24_rules-paper_Roundabout_sim0.gif"
+    assert iio.imread(gif, index=None).shape[0] == 3
+    assert f"wrote {gif}" in capsys.readouterr().out
+    line = one_line_exit_2(["evaluate", "paper:M5", "--animate", "Roundabout", "rules=paper_dynamics"], capsys)
+    assert "rules=paper (as it is) or rules=ours" in line
+
+
+@pytest.mark.slow
+def test_an_imported_policys_running_counts_are_its_evaluation_rows(tmp_path):
+    """The adapted M5 (our rules) on the Roundabout, simulations 0 and 1 of 2: each film's
+    collision counts after 40 steps are its rows' CR_AA and CR_AL times 40."""
+    from sigmarl.evaluation.imported import animate_imported, evaluate_imported
+
+    cfg = compose_config([f"obs={MODELS['M5']}", "rules=ours", "eval.n_sims=2", "eval.steps=40"])
+    films = animate_imported(M5, cfg, "M5", "M5-ITSC24", "Roundabout", [0, 1], 40, tmp_path, mp4=False)
+    rows = evaluate_imported(M5, cfg, "M5", "M5-ITSC24", ["Roundabout"], progress=False).set_index("simulation")
+    for k, film in films.items():
+        assert (film.agent, film.lane) == (round(rows.loc[k, "CR_AA"] * 40), round(rows.loc[k, "CR_AL"] * 40))
+        assert len(film.titles) == 40 and "M5-ITSC24 (rules=ours)" in film.titles[0]

@@ -1,6 +1,7 @@
 """`sigmarl evaluate TARGET --animate SCENARIO[,...]`: watch a trained policy drive, instead of
-evaluating it. Any checkpoint, run folder or MLflow run id that `evaluate` takes; any of the
-evaluation's simulations (`--sims`); files under reports/animations, never in a run folder.
+evaluating it. Any checkpoint, run folder or MLflow run id that `evaluate` takes, or a policy of
+the paper's own code (`paper:M5 rules=paper`); any of the evaluation's simulations (`--sims`);
+files under reports/animations, never in a run folder.
 
 Everything the command line can get wrong is answered before torch is imported.
 """
@@ -62,21 +63,43 @@ def cmd_animate(args: argparse.Namespace) -> None:
         raise SigmarlError(f"--frames {args.frames}: animate at least one step")
     out_dir = Path(args.animate_dir) if args.animate_dir else DEFAULT_DIR
     check_out_dir(out_dir)
-    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
-    from sigmarl.compose import compose_config
-    from sigmarl.evaluation import target
-
-    target.check_evaluate_overrides(args.overrides)
-    cfg = compose_config(args.overrides)
-    path = target.resolve_checkpoint(args.target, cfg)
-    use_threads(cfg.threads)
-    from sigmarl.evaluation.animation import animate, mp4_writer_installed
+    cfg, films_of = _driver(args, sims, out_dir)
+    from sigmarl.evaluation.animation import mp4_writer_installed
 
     for name in scenarios:
-        for k, film in animate(path, name, sims, args.frames, cfg.eval.n_sims, cfg.eval.seed, out_dir,
-                               device=cfg.device).items():
+        films = films_of(name)
+        for k, film in films.items():
             print(f"{name} simulation {k}, {args.frames} steps from eval.seed {cfg.eval.seed}: {film.agent} "
                   f"with an agent-agent collision, {film.lane} with a lane collision; wrote "
                   + ", ".join(str(f) for f in film.files))
     if not mp4_writer_installed():
         print("GIF only: `pip install imageio-ffmpeg` also writes an MP4 beside each")
+
+
+def _driver(args: argparse.Namespace, sims: list[int], out_dir: Path):
+    """The config the policy drives under, and scenario -> its films: a checkpoint's, or a
+    policy of the paper's own code as the named model under rules=paper|ours."""
+    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
+    from sigmarl.ablation import MODELS
+    from sigmarl.compose import compose_config
+    from sigmarl.evaluation import import_command, target
+
+    if import_command.takes(args):
+        model = import_command.model_of(args.target, args.model)
+        rules, overrides = import_command.rules_of(args.overrides)
+        path = import_command.policy_file(args.target)
+        cfg = compose_config([f"obs={MODELS[model]}", f"rules={rules}", *overrides])
+        label = args.label or model + import_command.LABEL_SUFFIX
+    else:
+        target.check_evaluate_overrides(args.overrides)
+        cfg = compose_config(args.overrides)
+        path = target.resolve_checkpoint(args.target, cfg)
+    use_threads(cfg.threads)
+    from sigmarl.evaluation.animation import animate, check_sims
+    from sigmarl.evaluation.imported import animate_imported
+
+    check_sims(sims, cfg.eval.n_sims)
+    if import_command.takes(args):
+        return cfg, lambda name: animate_imported(path, cfg, model, label, name, sims, args.frames, out_dir)
+    return cfg, lambda name: animate(path, name, sims, args.frames, cfg.eval.n_sims, cfg.eval.seed, out_dir,
+                                     device=cfg.device)

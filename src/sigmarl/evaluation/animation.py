@@ -73,7 +73,6 @@ class Film:
     lane: int = 0
 
 
-@torch.inference_mode()
 def animate(path: Path, scenario: str, sims: list[int], steps: int, n_sims: int, seed: int, out_dir: Path,
             name: str | None = None, device: str = "cpu", mp4: bool | None = None) -> dict[int, Film]:
     """{k: its Film (a GIF, and an MP4 where one can be written)} for each simulation k in `sims` of checkpoint `path` driving `scenario`:
@@ -82,20 +81,33 @@ def animate(path: Path, scenario: str, sims: list[int], steps: int, n_sims: int,
     Files are <out_dir>/<name>_<scenario>_sim<k>.gif (name: <model>_seed<seed> of the run).
     Policy and environment run on `device`, the command's, never on the device the checkpoint
     was trained on: a GPU-trained model animates on a CPU machine."""
+    check_sims(sims, n_sims)
+    actor, state = load_policy(path, n_agents=scenario_of(scenario).n_agents, device=device)
+    cfg = ckpt.config_of(state, path)
+    return animate_policy(actor, cfg, scenario, sims, steps, n_sims, seed, out_dir,
+                          name or f"{cfg.model}_seed{cfg.seed}", f"{cfg.model} seed {cfg.seed}", device, mp4)
+
+
+def check_sims(sims: list[int], n_sims: int) -> None:
     if bad := [k for k in sims if not 0 <= k < n_sims]:
         raise SigmarlError(f"simulation {bad[0]} does not exist: the evaluation runs simulations 0..{n_sims - 1} "
                            "(eval.n_sims)")
+
+
+@torch.inference_mode()
+def animate_policy(policy, cfg, scenario: str, sims: list[int], steps: int, n_sims: int, seed: int, out_dir: Path,
+                   name: str, who: str, device: str = "cpu", mp4: bool | None = None) -> dict[int, Film]:
+    """`animate` for any policy the evaluation drives (`rollout.rollout_steps`) under `cfg`:
+    files <out_dir>/<name>_<scenario>_sim<k>.gif, each frame titled with `who`."""
+    check_sims(sims, n_sims)
     n_agents = scenario_of(scenario).n_agents
-    actor, state = load_policy(path, n_agents=n_agents, device=device)
-    cfg = ckpt.config_of(state, path)
-    name = name or f"{cfg.model}_seed{cfg.seed}"
     mp4 = mp4_writer_installed() if mp4 is None else mp4
     writers = {k: _Frames(out_dir / f"{name}_{scenario}_sim{k}", mp4) for k in sims}
     scenes, films = {}, {k: Film([]) for k in sims}
-    for t, sc in enumerate(rollout_steps(actor, cfg, scenario, n_sims, steps, seed, n_agents, device), start=1):
+    for t, sc in enumerate(rollout_steps(policy, cfg, scenario, n_sims, steps, seed, n_agents, device), start=1):
         for k, film in films.items():
             if k not in scenes:
-                scenes[k] = Scene(sc, title=f"{scenario} · {cfg.model} seed {cfg.seed} · simulation {k}")
+                scenes[k] = Scene(sc, title=f"{scenario} · {who} · simulation {k}")
             # counted as the rows count: a step with any agent in such a contact (rollout._Sums)
             film.agent += bool(sc.agent_collision[k].any())
             film.lane += bool(sc.lane_collision[k].any())

@@ -203,3 +203,17 @@ def evaluate_rows_of(path: Path, target: str, cfg: Config, model: str, label: st
     rows = evaluate_imported(path, cfg, model, label, list(cfg.eval.scenarios))
     save_rows(rows, rows_file, identity, cfg.eval)
     return rows
+
+
+def animate_imported(path: Path, cfg: Config, model: str, label: str, scenario: str, sims: list[int], steps: int,
+                     out_dir: Path, mp4: bool | None = None) -> dict:
+    """The SigmaRL policy in `path`, as model `model` under `cfg.rules`, driving `scenario` as it
+    does in its evaluation (`animation.animate_policy`): <out_dir>/<label>_<rules>_<scenario>_sim<k>.gif."""
+    from sigmarl.evaluation.animation import animate_policy
+
+    layers = load_weights(path)
+    check_model_size(path, layers[0][0].shape[1], model, cfg, [scenario])
+    policy = imported_policy(layers, cfg, scenario_of(scenario).n_agents)
+    rules = rules_label(cfg.rules)
+    return animate_policy(policy, cfg, scenario, sims, steps, cfg.eval.n_sims, cfg.eval.seed, out_dir,
+                          f"{label}_rules-{rules}", f"{label} (rules={rules})", cfg.device, mp4)
