@@ -23,10 +23,10 @@ import forked
 import pytest
 import torch
 
-from sigmarl.block_membership import check_membership
 from sigmarl.compose import block_seeds, compose_block, compose_config
 from sigmarl.errors import SigmarlError
 from sigmarl.run import BLOCK_FILE, NEXT_RESUME_FILE, RESUME_FILE, Run
+from sigmarl.run.block_membership import check_membership
 from sigmarl.training import checkpoint as ckpt
 from sigmarl.training import metrics_file
 from sigmarl.training.learner import Learner

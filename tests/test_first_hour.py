@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from sigmarl.cli import build_parser, main
-from sigmarl.completion import bash_script
+from sigmarl.cli.completion import bash_script
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
 

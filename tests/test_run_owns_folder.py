@@ -10,9 +10,9 @@ import pytest
 from sigmarl import run as run_mod
 from sigmarl.errors import Terminated, end_status, exit_code, interruption, raise_if_interrupted
 
-SRC = Path(run_mod.__file__).parent
+SRC = Path(run_mod.__file__).parents[1]  # the package (sigmarl.run is a package: run/__init__.py)
 NAMES = {k: v for k, v in vars(run_mod).items() if k.endswith(("_FILE", "_META")) and isinstance(v, str)}
-EXEMPT = {"run.py"}
+EXEMPT = {"run/__init__.py"}
 JOIN = re.compile(r"/\s*(?:\w+\.)?(" + "|".join(NAMES) + r")\b|/\s*[\"'](" +
                   "|".join(re.escape(v) for v in NAMES.values()) + r"|seeds_auto\.json)[\"']")
 

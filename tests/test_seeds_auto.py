@@ -28,7 +28,7 @@ tracking:
 
 
 def test_seeds_auto_needs_two_first_seeds_and_the_baseline():
-    from sigmarl.adaptive import run_auto
+    from sigmarl.cli.adaptive import run_auto
 
     with pytest.raises(SigmarlError, match="needs at least two"):
         run_auto(["models=[M0,M4]", "tracking.enabled=false"])
@@ -69,7 +69,7 @@ def test_seeds_auto_runs_rounds_records_them_and_resumes(tmp_path, monkeypatch, 
     assert len(json.loads((tmp_path / "runs" / "seeds_auto.json").read_text())["looks"]) == looks
     # a different design is refused rather than mixed with the record
     with pytest.raises(SigmarlError, match="another design"):
-        from sigmarl.adaptive import run_auto
+        from sigmarl.cli.adaptive import run_auto
         from sigmarl.paths import add_user_conf_dir
 
         add_user_conf_dir(tmp_path / "conf")

@@ -11,10 +11,10 @@ import sys
 import pandas as pd
 import pytest
 
-from sigmarl.block_membership import write_membership
 from sigmarl.cli import main
 from sigmarl.errors import SigmarlError
 from sigmarl.run import Run
+from sigmarl.run.block_membership import write_membership
 from sigmarl.sweep import plan_sweep
 
 OFF = "tracking.enabled=false"

@@ -25,7 +25,7 @@ FLOORS: tuple[Floor, ...] = (
     Floor("ground", "the errors a user can cause, the run folder, crash points, a job's resources and "
           "progress lines, the paper's vocabulary and constants, the metrics' records, the study-free "
           "statistics, and the floors' own list",
-          ("sigmarl", "sigmarl.errors", "sigmarl.crash", "sigmarl.run", "sigmarl.block_membership",
+          ("sigmarl", "sigmarl.errors", "sigmarl.crash", "sigmarl.run",
            "sigmarl.resources", "sigmarl.progress", "sigmarl.ablation", "sigmarl.params", "sigmarl.metrics",
            "sigmarl.stats", "sigmarl.floors")),
     Floor("config records", "the structured-config schema and its groups' records, one module a group; "
@@ -50,8 +50,7 @@ FLOORS: tuple[Floor, ...] = (
           ("sigmarl.sweep", "sigmarl.report")),
     Floor("commands", "the command line and what only it drives: `seeds=auto`, shell completion, "
           "Hydra's search-path plugin",
-          ("sigmarl.cli", "sigmarl.__main__", "sigmarl.adaptive", "sigmarl.completion", "sigmarl.watch",
-           "hydra_plugins.sigmarl_config_dirs")),
+          ("sigmarl.cli", "sigmarl.__main__", "hydra_plugins.sigmarl_config_dirs")),
 )
 
 # (importing module, imported module) -> why it may import up a floor; at most three.

@@ -17,7 +17,6 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from sigmarl.block_membership import check_membership, read_block
 from sigmarl.compose import compose_config, compose_seeds
 from sigmarl.compose.validate import check_eval, seeds_per_job
 from sigmarl.config import SEED_MAX, Config, StudyConfig
@@ -26,6 +25,7 @@ from sigmarl.eval_key import eval_key
 from sigmarl.identity import check_label, differences, fingerprint
 from sigmarl.policy_input import check_variant
 from sigmarl.run import Run
+from sigmarl.run.block_membership import check_membership, read_block
 from sigmarl.sweep.command import Command, override_key, read_command, slug
 
 

@@ -22,7 +22,6 @@ from typing import Any
 import torch
 
 from sigmarl import crash
-from sigmarl.block_membership import block_name, check_membership, write_membership
 from sigmarl.compose.validate import check
 from sigmarl.config import Config, PPOConfig, as_dict
 from sigmarl.env.factory import check_room
@@ -32,6 +31,7 @@ from sigmarl.maps import load_map
 from sigmarl.paths import ensure_writable
 from sigmarl.progress import Progress
 from sigmarl.run import Run
+from sigmarl.run.block_membership import block_name, check_membership, write_membership
 from sigmarl.run_owner import check_ours
 from sigmarl.tracking import Tracker, flatten, open_tracker, provenance
 from sigmarl.training import checkpoint as ckpt

@@ -9,7 +9,7 @@ sent to the tracker; a kill in between is made good from metrics.csv on the next
 iteration is lost or doubled.
 
 A block of several seeds also leaves `block.json` in each seed's folder (the block it trained in,
-`sigmarl.block_membership`), and commits its resume points in two phases: every seed's new
+`sigmarl.run.block_membership`), and commits its resume points in two phases: every seed's new
 checkpoint is first written beside its old one (`checkpoint.next.pt`), and only when all are on
 disk is each renamed over `checkpoint.pt`. A kill in phase 1 leaves every old checkpoint (the new
 ones are dropped on resume); a kill in phase 2 leaves all the new ones written (the renames are

@@ -10,12 +10,21 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from sigmarl import __version__
+from sigmarl.cli.info import (
+    EVAL_KEYS_EPILOG,
+    KEYS_EPILOG,
+    KeysHelp,
+    PrintAndExit,
+    completion_script,
+    info_text,
+    print_cfg,
+)
+from sigmarl.cli.watch import add_watch_options, cmd_animate
 from sigmarl.errors import SigmarlError, exit_code, handle_sigterm, interruption
 from sigmarl.evaluation import import_command
 from sigmarl.paths import add_user_conf_dir, check_surroundings, config_files, ensure_writable
 from sigmarl.resources import use_threads
 from sigmarl.scenarios import scenario, scenario_names
-from sigmarl.watch import add_watch_options, cmd_animate
 
 
 def _map_names() -> list[str]:
@@ -115,10 +124,10 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    """A sweep; with `seeds=auto`, in rounds that add seeds where they decide (`sigmarl.adaptive`)."""
+    """A sweep; with `seeds=auto`, in rounds that add seeds where they decide (`sigmarl.cli.adaptive`)."""
     rest = [o for o in args.overrides if o.replace(" ", "") != "seeds=auto"]
     if len(rest) < len(args.overrides):
-        from sigmarl.adaptive import run_auto
+        from sigmarl.cli.adaptive import run_auto
 
         return run_auto(rest)
     # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
@@ -182,90 +191,6 @@ def _disk_full(error: BaseException) -> str | None:
             return f"{error.strerror}{where}; every file written before is intact: free some space and run again"
         error = error.__cause__ or error.__context__
     return None
-def print_cfg(args: argparse.Namespace) -> int:
-    """`--cfg job|hydra|all`, as in Hydra apps: the config the command would run with (composed
-    and resolved; a sweep prints each job's), Hydra's own settings, or both."""
-    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
-    from omegaconf import OmegaConf
-
-    from sigmarl.compose import compose_config, hydra_config
-    from sigmarl.config import to_yaml
-
-    overrides = list(args.overrides)
-    jobs: list[list[str]] = [[]]
-    if args.command == "sweep":
-        from sigmarl.sweep import job_overrides
-
-        overrides, jobs = job_overrides(overrides)
-    if args.cfg in ("hydra", "all"):
-        print(OmegaConf.to_yaml({"hydra": hydra_config(overrides)}), end="")
-    if args.cfg in ("job", "all"):
-        for job in jobs:
-            if job:
-                print(f"# job: {' '.join(job)}")
-            print(to_yaml(compose_config([*(o for o in overrides if not o.startswith("hydra")), *job])), end="")
-    return 0
-
-
-class _PrintAndExit(argparse.Action):
-    """An option that prints something and ends the command, like --version."""
-
-    def __init__(self, option_strings, dest, text, **kwargs):
-        self.text = text
-        super().__init__(option_strings, dest, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        try:
-            print(self.text(parser, values, namespace))
-        except BrokenPipeError:  # `sigmarl --info | head`: the reader left
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        parser.exit()
-
-
-def _completion(parser: argparse.ArgumentParser, shell: str, namespace: argparse.Namespace) -> str:
-    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
-    from sigmarl.completion import bash_script
-
-    return bash_script(parser)
-
-
-def _info(parser: argparse.ArgumentParser, key: str | None, namespace: argparse.Namespace) -> str:
-    try:
-        for folder in namespace.config_dir:  # those named before --info: theirs are listed too
-            add_user_conf_dir(folder)
-    except SigmarlError as e:
-        parser.exit(2, f"sigmarl: error: {e}\n")
-    if key:
-        # lazy: config_help's dataclass introspection costs `sigmarl --help` a third of its start-up
-        from sigmarl.config.help import describe
-
-        try:
-            return describe(key)
-        except SigmarlError as e:
-            parser.exit(2, f"sigmarl: error: {e}\n")
-    # lazy: `sigmarl --help` and a bad argument answer without Hydra, torch or MLflow
-    from sigmarl.completion import info
-
-    return info()
-
-
-_KEYS = "config keys"  # the epilog that _KeysHelp replaces with the keys
-_EVAL_KEYS = "eval keys"  # ... with the evaluation's keys and their defaults
-
-
-class _KeysHelp(argparse.RawDescriptionHelpFormatter):
-    """`sigmarl train --help` ends with every config key and its help line (the config's
-    source is read only when the help is printed)."""
-
-    def add_text(self, text: str | None) -> None:
-        if text in (_KEYS, _EVAL_KEYS):
-            # lazy: config_help's dataclass introspection costs `sigmarl --help` a third of its start-up
-            from sigmarl.config.help import keys_epilog
-
-            text = keys_epilog("eval." if text == _EVAL_KEYS else "")
-        super().add_text(text)
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="sigmarl",
@@ -275,18 +200,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a folder of your own configs laid out like conf/ (study/, scenario/, map/, ...), "
                         "searched before sigmarl's; repeatable")
     p.add_argument("--version", action="version", version=f"sigmarl {__version__}")
-    p.add_argument("--info", action=_PrintAndExit, nargs="?", text=_info, metavar="KEY",
+    p.add_argument("--info", action=PrintAndExit, nargs="?", text=info_text, metavar="KEY",
                    help="versions, the config folders, the config groups and their options (with --config-dir "
                         "DIR before it or $SIGMARL_CONFIG_PATH, yours too, marked [1], [2], ...); with KEY "
                         "(ppo.lr, or a group: ppo) its type, default and help")
-    p.add_argument("--completion", action=_PrintAndExit, choices=["bash"], text=_completion,
+    p.add_argument("--completion", action=PrintAndExit, choices=["bash"], text=completion_script,
                    help="print a shell completion script: eval \"$(sigmarl --completion bash)\" "
                         "(zsh: after `autoload bashcompinit && bashcompinit`)")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_maps(sub)
     train = sub.add_parser("train", help="train one model with MAPPO (resumable, tracked in MLflow); seeds=[0,1,2,3] "
                            "trains those seeds as one seed block, one batched computation in one process",
-                           epilog=_KEYS, formatter_class=_KeysHelp)
+                           epilog=KEYS_EPILOG, formatter_class=KeysHelp)
     train.add_argument(
         "overrides", nargs="*", default=[],
         help="Hydra overrides, e.g. obs=no_ego_view seed=3 resume=true; ppo=smoke is a seconds-long try, "
@@ -294,7 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.set_defaults(func=cmd_train)
     ev = sub.add_parser("evaluate", help="evaluate a trained model on the test scenarios",
-                        epilog=_EVAL_KEYS, formatter_class=_KeysHelp)
+                        epilog=EVAL_KEYS_EPILOG, formatter_class=KeysHelp)
     ev.add_argument("target", help="checkpoint file, training run folder, MLflow training run id, or SigmaRL policy")
     ev.add_argument("--scenario", action="append", help=f"one of {', '.join(scenario_names())} (default: the "
                     "study's, the paper's four); repeatable")
@@ -388,6 +313,3 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
     return rc if isinstance(rc, int) else 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())
