@@ -3,7 +3,7 @@
 Runs the evaluation protocol (test mode, deterministic actions, the evaluation seed) and
 logs every agent-lane contact with the agent's age since its (re)spawn, its speed at
 spawn and at contact, its offset from the center line, which side it touched and the
-road's curvature there. Used to look for the cause of the CPM lane-collision gap (docs/results/paper-study.md,
+road's curvature there. Used to look for the cause of the CPM lane-collision gap (docs/changelog.md,
 "The CPM lane-collision gap was ours"): `python scripts/lane_contacts.py results/paper-budget/M0/seed0/best.pt`.
 """
 

@@ -31,23 +31,29 @@ STUDY = "results/paper-budget"  # relative to ROOT: the report's notes name run 
 GENERALISATION = "results/generalisation"
 # the paper's rules: its runs beside the study's runs under ours, which it reuses
 RULES = "results/paper-rules"
+# the rule-based driver: its one evaluation beside the study's M0
+RULE_BASED = "results/rule-based"
 # report name -> (its folders, its options)
 REPORTS = {"paper": ([STUDY], ["--compare-paper"]),
            "generalisation": ([GENERALISATION], ["study=generalisation"]),
-           "rules": ([RULES, STUDY], ["study=paper_rules"])}
+           "rules": ([RULES, STUDY], ["study=paper_rules"]),
+           "rule_based": ([RULE_BASED, STUDY], ["study=rule_based", "+study.variants.M0=['obs=full']"])}
 PAPER_PAGE, RULES_PAGE, GENERALISATION_PAGE = ("docs/results/paper-study.md", "docs/results/paper-rules.md",
                                                 "docs/results/generalisation.md")
+# the paper's study's appendix: the statistics, verdicts, seeds and training behind its page
+DETAILS_PAGE = "docs/results/paper-study-details.md"
 # marker name -> (report, the report's file, the pages that hold the block)
 BLOCKS = {
     "results-replication": ("paper", "replication.md", (PAPER_PAGE,)),
     "results-paper-policies": ("paper", "paper_policies.md", (PAPER_PAGE,)),
     "results-table": ("paper", "table.md", ("README.md", PAPER_PAGE)),
     "results-findings": ("paper", "findings.md", (PAPER_PAGE,)),
-    "results-statistics": ("paper", "statistics.md", (PAPER_PAGE,)),
-    "results-verdicts": ("paper", "verdicts.md", (PAPER_PAGE,)),
-    "results-seeds": ("paper", "seeds.md", (PAPER_PAGE,)),
-    "results-training": ("paper", "training.md", (PAPER_PAGE,)),
-    "results-curves": ("paper", "curve_verdicts.md", (PAPER_PAGE,)),
+    "results-statistics": ("paper", "statistics.md", (DETAILS_PAGE,)),
+    "results-verdicts": ("paper", "verdicts.md", (DETAILS_PAGE,)),
+    "results-seeds": ("paper", "seeds.md", (DETAILS_PAGE,)),
+    "results-training": ("paper", "training.md", (DETAILS_PAGE,)),
+    "results-curves": ("paper", "curve_verdicts.md", (DETAILS_PAGE,)),
+    "rule-based-matrix": ("rule_based", "matrix.md", (PAPER_PAGE,)),
     "rules-verdicts": ("rules", "verdicts.md", (RULES_PAGE,)),
     "generalisation-matrix": ("generalisation", "matrix.md", (GENERALISATION_PAGE,)),
     "generalisation-verdicts": ("generalisation", "verdicts.md", (GENERALISATION_PAGE,)),
@@ -76,6 +82,10 @@ def _report(folders: list[str], options: list[str]) -> dict[str, str]:
         files = {p.name: p.read_text(encoding="utf-8") for p in Path(tmp).glob("*.md")}
     # a page's block holds the table itself; what its columns are is the page's own prose
     files["table.md"] = files["table.md"].split(f"\n{TABLE_HEADING}\n\n", 1)[-1]
+    # and under the page's own heading, a file's title would be a second page title
+    for name, text in files.items():
+        if text.startswith("# "):
+            files[name] = text.split("\n", 1)[-1].lstrip("\n")
     return files
 
 
@@ -101,12 +111,12 @@ def warn_uncommitted() -> None:
     """The blocks name unfinished run folders; ones git does not hold yet make pages that a
     clean clone does not rebuild (tests/test_results_blocks.py then fails there)."""
     try:
-        out = subprocess.run(["git", "status", "--porcelain", "--", STUDY, GENERALISATION, RULES], cwd=ROOT,
+        out = subprocess.run(["git", "status", "--porcelain", "--", STUDY, GENERALISATION, RULES, RULE_BASED], cwd=ROOT,
                              capture_output=True, text=True, check=True).stdout
     except (OSError, subprocess.CalledProcessError):
         return
     if out.strip():
-        print(f"warning: {STUDY}, {GENERALISATION} or {RULES} has {len(out.splitlines())} uncommitted change(s); "
+        print(f"warning: {STUDY}, {GENERALISATION}, {RULES} or {RULE_BASED} has {len(out.splitlines())} uncommitted change(s); "
               "commit them with the pages, or a clean clone's results-blocks test fails", file=sys.stderr)
 
 
