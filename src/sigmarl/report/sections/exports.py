@@ -49,6 +49,12 @@ def figures_section(d: Draft) -> None:
         plot_training_curves(d.curves, d.file("training_curves", "training_curves.png"), models,
                              paper=paper_curves() if d.options.compare_paper else None)
         plot_training_band(d.curves, d.file("training_band", "training_band.png"), models)
+        if d.options.compare_paper:
+            from sigmarl.report.exports.paper_band import plot_paper_band
+
+            own = [m for m in models if d.paper_models[m] == m]
+            if plot_paper_band(d.curves, paper_curves(), own, d.file("paper_band", "paper_band.png")) is None:
+                del d.paths["paper_band"]
     if len(scenarios) > 1 and len(models) > 1:
         plot_heatmap(d.summary, models, scenarios, d.file("heatmap", "heatmap.png"))
     plot_performance_profiles(chosen, models, scenarios, d.file("performance_profiles", "performance_profiles.png"))
@@ -71,4 +77,7 @@ FIGURES = Section("figures", {
     "heatmap.png": "CR_total's estimates, models by scenarios, with intervals (several of each)",
     "training_curves.png": "mean episode reward per iteration, a line per model (the paper's Fig. 5 beside it "
                            "with `--compare-paper`)",
-    "training_band.png": "mean reward per iteration over seeds, with its 95% band over resampled seeds"}, figures_section, when="unless `--no-figures`")
+    "training_band.png": "mean reward per iteration over seeds, with its 95% band over resampled seeds",
+    "paper_band.png": "with `--compare-paper`: the paper's training curve of each of its models against our seeds' "
+                      "range and median, on the definition our runs logged (batch-cut, or the complete-episode "
+                      "estimate where every seed has it), the paper's evaluated policy's iteration marked"}, figures_section, when="unless `--no-figures`")
