@@ -185,7 +185,7 @@ def test_the_map_params_are_the_keys_the_map_is_built_from(kind):
 
     from sigmarl.compose import compose_config
     from sigmarl.maps import load_map
-    from sigmarl.tracking.training import MAP_KEYS
+    from sigmarl.config.map import map_keys
 
     base = compose_config([f"map={kind}"]).map
 
@@ -196,4 +196,4 @@ def test_the_map_params_are_the_keys_the_map_is_built_from(kind):
     for key in PROCEDURAL:
         same = drawn(replace(base, **{key: _nudged(getattr(base, key))})) == before
         shadowed = key == "arm_length" and base.arm_lengths
-        assert same == (key not in MAP_KEYS[kind] or bool(shadowed)), (kind, key)
+        assert same == (key not in map_keys(kind) or bool(shadowed)), (kind, key)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from sigmarl.ablation import later_flags
 from sigmarl.config import as_dict, flatten
 from sigmarl.config.driver import ADDED_KEYS as DRIVER_KEYS
+from sigmarl.config.map import later_map_keys
 from sigmarl.config.reward import ADDED_KEYS as REWARD_KEYS
 from sigmarl.config.rules import ADDED_KEYS as RULES_KEYS
 from sigmarl.config.vehicle import ADDED_KEYS as VEHICLE_KEYS
@@ -40,8 +41,9 @@ ADDED_LATER: dict[str, Any] = {"network.centralised_critic": True, **REWARD_KEYS
 
 
 def added_later() -> dict[str, Any]:
-    """ADDED_LATER and the later observation strategies, as declared now."""
-    return {**ADDED_LATER, **{f"obs.{flag}": off for flag, off in later_flags().items()}}
+    """ADDED_LATER, the later observation strategies and the keys of later kinds of map, as
+    declared now."""
+    return {**ADDED_LATER, **{f"obs.{flag}": off for flag, off in later_flags().items()}, **later_map_keys()}
 
 # a label names a folder and a table column: letters, digits, '.', '_', '-'
 _LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")

@@ -20,6 +20,7 @@ from typing import Literal, get_args
 
 from sigmarl.config import Config, EvalConfig, MapConfig
 from sigmarl.config.driver import check_driver
+from sigmarl.config.map import kind_of
 from sigmarl.config.ranges import check_ranges
 from sigmarl.config.reward import check_reward
 from sigmarl.errors import SigmarlError
@@ -146,8 +147,7 @@ def check_map(m: MapConfig) -> MapConfig:
     """`m` if its values are usable (a map config read on its own, e.g. by `sigmarl maps list`)."""
     check_finite(m, "map")
     check_ranges(m, "map.")
-    if m.kind == "osm" and not m.path:
-        raise SigmarlError("map.kind=osm needs map.path=<file.osm>")
+    kind_of(m)  # the keys its kind needs (an OSM map: its file)
     return m
 
 

@@ -32,8 +32,10 @@ class KeyHelp:
 def _field_docs(cls: type) -> dict[str, tuple[str, str]]:
     """field -> (annotation as written, help line) for one dataclass, from its module's source."""
     tree = ast.parse(Path(inspect.getsourcefile(cls)).read_text(encoding="utf-8"))
-    node = next(n for n in ast.walk(tree) if isinstance(n, ast.ClassDef) and n.name == cls.__name__)
+    node = next((n for n in ast.walk(tree) if isinstance(n, ast.ClassDef) and n.name == cls.__name__), None)
     docs: dict[str, tuple[str, str]] = {}
+    if node is None:  # a generated class (`sigmarl.config.map.MapConfig`): its FIELD_SOURCES say
+        return docs
     for stmt, after in zip(node.body, [*node.body[1:], None], strict=True):
         if isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name):
             text = ""
@@ -69,11 +71,12 @@ def key_help(schema: type | None = None) -> tuple[KeyHelp, ...]:
 
 def _walk(cls: type, prefix: str):
     docs, types = _field_docs(cls), get_type_hints(cls)
+    sources = getattr(cls, "FIELD_SOURCES", {})  # a generated class's keys, by the class declaring each
     for f in dataclasses.fields(cls):
         key = f"{prefix}{f.name}"
         # a generated field (ObsConfig's strategy flags) carries its help in its class's FIELD_HELP
         declared = (getattr(types[f.name], "__name__", str(types[f.name])), getattr(cls, "FIELD_HELP", {}).get(f.name, ""))
-        annotation, text = docs.get(f.name, declared)
+        annotation, text = (_field_docs(sources[f.name]) if f.name in sources else docs).get(f.name, declared)
         if dataclasses.is_dataclass(types[f.name]):
             yield KeyHelp(key, annotation, None, text or _summary(types[f.name]), group=True)
             yield from _walk(types[f.name], key + ".")

@@ -3,6 +3,7 @@ by name (`conf/map/<name>.yaml`) or by the scenario that runs on it."""
 
 from __future__ import annotations
 
+import importlib
 from typing import TYPE_CHECKING
 
 from sigmarl.errors import MapError, SigmarlError
@@ -15,26 +16,22 @@ __all__ = ["Lanelet", "MapError", "RoadMap", "Route", "load_map", "map_config", 
 
 
 def load_map(cfg: MapConfig) -> RoadMap:
-    """Build the RoadMap a `MapConfig` describes."""
-    kind = cfg.kind
-    if kind == "cpm":
-        # lazy: each loader (XML, geometry) only for its kind of map
-        from sigmarl.maps.cpm import load_cpm
+    """Build the RoadMap a `MapConfig` describes, with the builder its kind's record names
+    (`sigmarl.config.map`), imported only for a map of that kind."""
+    # lazy: the map model (every environment module imports it) needs no config machinery
+    from sigmarl.config.map import kind_of
 
-        return load_cpm(cfg.route_set)
-    if kind in ("intersection", "on_ramp", "roundabout"):
-        from sigmarl.maps import builders
+    module, _, function = kind_of(cfg).builder.partition(":")
+    return getattr(importlib.import_module(module), function)(cfg)
 
-        return builders.build(cfg)
-    if kind == "osm":
-        from sigmarl.maps.osm import load_osm
-        from sigmarl.maps.paper import package_map_path
 
-        if not cfg.path:
-            raise MapError("map.kind=osm needs map.path=<file.osm>")
-        path = package_map_path(cfg.path)  # `package:maps/x.osm`: a map shipped with sigmarl
-        return load_osm(path, lane_width=cfg.lane_width, routes=list(cfg.routes) or None, name=cfg.name)
-    raise MapError(f"unknown map kind {kind!r}; choose cpm, intersection, on_ramp, roundabout or osm")
+def osm_map(cfg: MapConfig) -> RoadMap:
+    """The map of an OSM file (kind osm); `package:maps/x.osm` is a map shipped with sigmarl."""
+    from sigmarl.maps.osm import load_osm
+    from sigmarl.maps.paper import package_map_path
+
+    return load_osm(package_map_path(cfg.path), lane_width=cfg.lane_width, routes=list(cfg.routes) or None,
+                    name=cfg.name)
 
 
 def map_config(name: str) -> MapConfig:

@@ -335,19 +335,22 @@ def _ring(lanelets: dict[int, Lanelet], theta: list[float], gaps: tuple[float, f
     return ring_ids
 
 
-def build(cfg: MapConfig) -> RoadMap:
-    """The procedural map a MapConfig (kind intersection | on_ramp | roundabout) describes."""
-    kind, name, w = cfg.kind, cfg.name or cfg.kind, float(cfg.lane_width)
-    if w <= 0:
-        raise MapError(f"map {name}: lane_width must be positive, got {w}")
-    arms = list(cfg.arm_lengths) or [cfg.arm_length]
-    if kind == "intersection":
-        return build_intersection(name, w, int(cfg.n_arms), arms, float(cfg.junction_offset))
-    if kind == "on_ramp":
-        return build_on_ramp(
-            name, w, int(cfg.n_ramps), float(cfg.main_length), float(cfg.ramp_drop),
-            float(cfg.ramp_angle), float(cfg.ramp_radius),
-        )
-    if kind == "roundabout":
-        return build_roundabout(name, w, int(cfg.n_arms), arms, float(cfg.radius), float(cfg.entry_radius))
-    raise MapError(f"map {name}: no builder for kind {kind!r}; choose intersection, on_ramp or roundabout")
+def _arms(cfg: MapConfig) -> list[float]:
+    return list(cfg.arm_lengths) or [cfg.arm_length]
+
+
+def intersection_map(cfg: MapConfig) -> RoadMap:
+    """The procedural intersection of a MapConfig (kind intersection)."""
+    return build_intersection(cfg.name or cfg.kind, float(cfg.lane_width), int(cfg.n_arms), _arms(cfg), float(cfg.junction_offset))
+
+
+def on_ramp_map(cfg: MapConfig) -> RoadMap:
+    """The procedural on-ramp of a MapConfig (kind on_ramp)."""
+    return build_on_ramp(cfg.name or cfg.kind, float(cfg.lane_width), int(cfg.n_ramps), float(cfg.main_length),
+                         float(cfg.ramp_drop), float(cfg.ramp_angle), float(cfg.ramp_radius))
+
+
+def roundabout_map(cfg: MapConfig) -> RoadMap:
+    """The procedural roundabout of a MapConfig (kind roundabout)."""
+    return build_roundabout(cfg.name or cfg.kind, float(cfg.lane_width), int(cfg.n_arms), _arms(cfg), float(cfg.radius),
+                            float(cfg.entry_radius))

@@ -10,12 +10,16 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sigmarl.errors import MapError
 from sigmarl.maps.model import Lanelet, RoadMap
 from sigmarl.maps.routes import build_route, corridor_members, infer_adjacency
+
+if TYPE_CHECKING:
+    from sigmarl.config import MapConfig
 
 # The seven loops the paper drives on the whole map (lanelet sequences).
 CPM_LOOPS: tuple[tuple[int, ...], ...] = (
@@ -146,3 +150,8 @@ def load_cpm(route_set: str = "loops", path: Path | None = None) -> RoadMap:
     else:
         raise MapError(f"unknown CPM route set {route_set!r}; choose 'loops' or 'intersection'")
     return RoadMap(name=name, lanelets=lanelets, routes=routes, lane_width=CPM_LANE_WIDTH, source=str(path))
+
+
+def cpm_map(cfg: MapConfig) -> RoadMap:
+    """The CPM Lab map of a MapConfig (kind cpm): its route set."""
+    return load_cpm(cfg.route_set)

@@ -17,6 +17,7 @@ from typing import Any
 
 from sigmarl.ablation import obs_strategies
 from sigmarl.config import Config, as_dict
+from sigmarl.config.map import map_keys
 from sigmarl.errors import SigmarlError, raise_if_interrupted
 from sigmarl.identity import TRAINING_GROUPS
 from sigmarl.run import REWARD_COLUMN
@@ -42,16 +43,6 @@ def _has_run(client: Any, run_id: str) -> bool:
     return True
 
 
-# The MapConfig keys each kind of map is built from (`sigmarl.maps.load_map` and its builders);
-# the others do not shape that map, and a training run's MLflow params leave them out. Kept here,
-# not in sigmarl.maps, which imports torch: the tracker is opened before torch is needed.
-MAP_KEYS = {
-    "cpm": ("route_set",),
-    "intersection": ("lane_width", "arm_length", "arm_lengths", "n_arms", "junction_offset"),
-    "roundabout": ("lane_width", "arm_length", "arm_lengths", "n_arms", "radius", "entry_radius"),
-    "on_ramp": ("lane_width", "n_ramps", "main_length", "ramp_drop", "ramp_angle", "ramp_radius"),
-    "osm": ("lane_width", "path", "routes"),
-}
 
 
 RUN_PARAMS = ("seed", "model", "fingerprint", "device", "threads", "run_dir")
@@ -64,7 +55,7 @@ def training_params(cfg: Config) -> dict[str, str]:
     this run's settings (the study, overrides and resolved precision are its tags)."""
     values = as_dict(cfg)
     groups = {g: values[g] for g in TRAINING_GROUPS}
-    groups["map"] = {k: v for k, v in groups["map"].items() if k in ("name", "kind", *MAP_KEYS.get(cfg.map.kind, ()))}
+    groups["map"] = {k: v for k, v in groups["map"].items() if k in ("name", "kind", *map_keys(cfg.map.kind))}
     return {**flatten(groups), **{k: str(values[k]) for k in RUN_PARAMS}}
 
 
