@@ -184,8 +184,8 @@ def test_the_map_params_are_the_keys_the_map_is_built_from(kind):
     import numpy as np
 
     from sigmarl.compose import compose_config
-    from sigmarl.maps import load_map
     from sigmarl.config.map import map_keys
+    from sigmarl.maps import load_map
 
     base = compose_config([f"map={kind}"]).map
 
