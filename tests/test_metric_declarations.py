@@ -92,3 +92,40 @@ def test_a_later_metric_is_checked_where_it_was_measured():
         check_rows(rows.assign(LV_100m=float("inf")), path)
     with pytest.raises(SigmarlError, match="CR_AA is not a finite number"):  # Table I's: never undefined
         check_rows(rows.assign(CR_AA=float("nan")), path)
+
+
+@pytest.mark.slow
+def test_evaluate_adds_the_missing_metrics_only_when_asked(tmp_path, capsys):
+    """Rows written before the benchmark's metrics (saved as an older writer did, without their
+    columns) are reused as they are; `--add-metrics` evaluates again and adds the columns, every
+    saved column's text kept."""
+    from sigmarl.cli import main
+    from sigmarl.evaluation.protocol import save_rows
+
+    run = tmp_path / "run"
+    protocol = ["eval.scenarios=[Intersection]", "eval.n_sims=2", "eval.steps=60", "tracking.enabled=false"]
+    assert main(["train", "ppo=smoke", "ppo.iterations=1", f"run_dir={run}", *protocol]) == 0
+    assert main(["evaluate", str(run / "final.pt"), *protocol]) == 0
+    rows_file, note_file = run / "evaluation_rows.csv", run / "evaluation.json"
+    whole = pd.read_csv(rows_file)
+    assert metrics.measured(whole) == metrics.MEASURED
+    check_rows(whole, rows_file)
+    note = json.loads(note_file.read_text())
+    identity = {"eval_key": note["eval_key"], "checkpoint_sha256": note["checkpoint_sha256"]}
+    older = pd.read_csv(rows_file, dtype=note["dtypes"]).drop(columns=metrics.ADDED)
+    save_rows(older, rows_file, identity, compose_config(protocol).eval)
+    before = rows_file.read_bytes()
+
+    assert main(["evaluate", str(run / "final.pt"), *protocol]) == 0  # not asked: reused as they are
+    assert rows_file.read_bytes() == before
+
+    assert main(["evaluate", str(run / "final.pt"), "--add-metrics", *protocol]) == 0
+    text_before = pd.read_csv(pd.io.common.BytesIO(before), dtype=str, keep_default_na=False)
+    text_after = pd.read_csv(rows_file, dtype=str, keep_default_na=False)
+    assert list(text_after.columns) == [*text_before.columns, *metrics.ADDED]
+    pd.testing.assert_frame_equal(text_after[text_before.columns], text_before)  # every saved cell's text
+    added = pd.read_csv(rows_file)
+    pd.testing.assert_frame_equal(added[metrics.ADDED], whole[metrics.ADDED])  # what one evaluation measures
+    check_rows(added, rows_file)
+    assert json.loads(note_file.read_text())["added_metrics"] == metrics.ADDED
+    assert "TS" in capsys.readouterr().out

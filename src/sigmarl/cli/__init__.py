@@ -109,12 +109,12 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     path = target.into_its_experiment(target.resolve_checkpoint(args.target, cfg), cfg, args.overrides)  # no torch yet
     use_threads(cfg.threads)
     from sigmarl.evaluation.protocol import evaluate_and_log, rows_file_for
-    from sigmarl.metrics import scaled, units_text
+    from sigmarl.metrics import measured, scaled, units_text
 
     rows_file = Path(args.out) if args.out else rows_file_for(path, cfg)
     with target.run_folder_held(path):  # not while `sigmarl train` writes it (its best.pt may change)
-        rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file)
-    means = scaled(rows).groupby(rows["scenario"], sort=False).mean()
+        rows, run_id = evaluate_and_log(path, cfg, train_run_id=None, rows_file=rows_file, add_metrics=args.add_metrics)
+    means = scaled(rows, measured(rows)).groupby(rows["scenario"], sort=False).mean()
     print(f"{rows['model'].iloc[0]} ({path}), {cfg.eval.n_sims} simulations x {cfg.eval.steps} steps, "
           f"seed {cfg.eval.seed}: {units_text()}")
     print(means.round(3).to_string())
@@ -224,6 +224,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--scenario", action="append", help=f"one of {', '.join(scenario_names())} (default: the "
                     "study's, the paper's four); repeatable")
     ev.add_argument("--out", help="the CSV for the per-simulation rows (default: evaluation_rows.csv beside the checkpoint)")
+    ev.add_argument("--add-metrics", action="store_true", help="saved rows lacking a metric declared since: evaluate "
+                    "again and add its column, the saved columns kept as they are")
     ev.add_argument("overrides", nargs="*", default=[], help="Hydra overrides, e.g. eval.n_sims=8 eval.steps=600")
     add_watch_options(ev)
     import_command.add_options(ev)  # --model, --label: a SigmaRL policy (paper:M<k>, a .pth file)

@@ -21,7 +21,9 @@ from sigmarl.env.paper_rules import rules_label
 from sigmarl.eval_key import RULES_REVISION, eval_key, protocol, protocol_key
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noqa: F401 (their old home)
+from sigmarl.errors import SigmarlError
 from sigmarl.identity import fingerprint
+from sigmarl.metrics import MEASURED, measured
 from sigmarl.paths import ensure_writable
 from sigmarl.policy_input import check_evaluable
 from sigmarl.rows import note_protocol, rows_measured
@@ -89,7 +91,6 @@ def study_protocol(run_dir: Path) -> str | None:
     config = Run(run_dir).config_file
     if not config.is_file():
         return None
-    from sigmarl.errors import SigmarlError
     from sigmarl.readers import read_run_config
 
     try:
@@ -152,13 +153,17 @@ def save_rows(rows: pd.DataFrame, rows_file: Path, identity: dict[str, str], eva
 
 
 def evaluate_rows(path: Path, cfg: Config, rows_file: Path | None, scenarios=None,
-                  progress: bool = True) -> tuple[pd.DataFrame, dict]:
+                  progress: bool = True, add_metrics: bool = False) -> tuple[pd.DataFrame, dict]:
     """The checkpoint's evaluation rows and the checkpoint: those saved in `rows_file` under the
-    same protocol and checkpoint, or evaluated now (and saved there)."""
+    same protocol and checkpoint, or evaluated now (and saved there). With `add_metrics`, saved
+    rows that lack a metric declared since are completed (`completed_rows`)."""
     from sigmarl.training import checkpoint as ckpt
 
     identity = _identity(path, cfg) if rows_file is not None else {}
     rows = saved_rows(rows_file, identity) if rows_file is not None else None
+    if rows is not None and add_metrics and [m for m in MEASURED if m not in rows.columns]:
+        rows = completed_rows(rows_file, identity, evaluate_checkpoint(path, cfg.eval, scenarios, cfg.device,
+                                                                        progress)[0], cfg.eval)
     if rows is not None:
         return rows, ckpt.load(path, cfg.device)
     if rows_file is not None:
@@ -169,6 +174,34 @@ def evaluate_rows(path: Path, cfg: Config, rows_file: Path | None, scenarios=Non
     return rows, state
 
 
+def completed_rows(rows_file: Path, identity: dict[str, str], fresh: pd.DataFrame, eval_cfg: EvalConfig) -> pd.DataFrame:
+    """The saved rows with the metric columns they lack taken from `fresh` (the same checkpoint
+    evaluated again under the same protocol), every saved column's text kept as it was. Refused
+    where the fresh rollout does not reproduce the saved metrics: the added ones would describe
+    another rollout."""
+    import numpy as np
+
+    text = pd.read_csv(rows_file, dtype=str, keep_default_na=False)
+    saved = saved_rows(rows_file, identity)
+    keys = ["scenario", "simulation"]
+    fresh = saved[keys].merge(fresh, on=keys, how="left", suffixes=("_saved", ""))
+    for name in measured(saved):
+        if not np.allclose(saved[name].astype(float), fresh[name].astype(float), rtol=1e-4, atol=1e-6):
+            raise SigmarlError(f"{rows_file}: evaluated again, {name} differs from the saved rows (another "
+                               "device or version?); the metrics cannot be added to them. Evaluate the run "
+                               "anew instead (delete evaluation_rows.csv and evaluate again)")
+    added = [m for m in MEASURED if m not in saved.columns]
+    for name in added:
+        text[name] = fresh[name].to_numpy()
+    meta = _read_meta(rows_file) or {}
+    save_rows(text, rows_file, identity, eval_cfg)
+    dtypes = {**meta.get("dtypes", {}), **{m: str(fresh[m].dtype) for m in added}}
+    note = json.loads(_meta_path(rows_file).read_text(encoding="utf-8"))
+    note.update(dtypes=dtypes, added_metrics=added)
+    write_atomic(_meta_path(rows_file), json.dumps(note, indent=1) + "\n")
+    return saved_rows(rows_file, identity)
+
+
 def has_rows(rows_file: Path, cfg: Config) -> bool:
     """Whether `rows_file` holds whole rows measured under `cfg`'s evaluation protocol."""
     return rows_measured(rows_file, _meta_path(rows_file), eval_key(cfg.eval))
@@ -176,7 +209,7 @@ def has_rows(rows_file: Path, cfg: Config) -> bool:
 
 def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenarios=None,
                      progress: bool = True, rows_file: Path | None = None,
-                     tracker: Tracker | None = None) -> tuple[pd.DataFrame, str | None]:
+                     tracker: Tracker | None = None, add_metrics: bool = False) -> tuple[pd.DataFrame, str | None]:
     """Evaluate a checkpoint and record it as an evaluation run in `tracker` (default: the one
     `cfg` chooses; none with tracking off).
 
@@ -185,7 +218,7 @@ def evaluate_and_log(path: Path, cfg: Config, train_run_id: str | None, scenario
     checkpoint are logged without evaluating again.
     """
     tracker = tracker or open_tracker(cfg)  # the store is checked before evaluating
-    rows, state = evaluate_rows(path, cfg, rows_file, scenarios, progress)
+    rows, state = evaluate_rows(path, cfg, rows_file, scenarios, progress, add_metrics)
     crash.point("eval:rows")
     train_cfg = ckpt.config_of(state, path)
     tags = {

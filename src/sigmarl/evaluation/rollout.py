@@ -20,7 +20,9 @@ from sigmarl.config import Config, EvalConfig
 from sigmarl.env.factory import make_scenario, step_scenario
 from sigmarl.env.paper_rules import for_evaluation
 from sigmarl.errors import SigmarlError
+from sigmarl.evaluation.benchmark import BenchmarkSums, lap_goals
 from sigmarl.maps import scenario_map_config
+from sigmarl.metrics import AS, CD, CR_AA, CR_AL, CR_TOTAL, MEASURED
 from sigmarl.progress import Progress
 from sigmarl.scenarios import scenario as scenario_of
 from sigmarl.training.networks import PolicyHead
@@ -72,7 +74,9 @@ def evaluate_policy(
     device: str | None = None,
     progress: bool = True,
 ) -> pd.DataFrame:
-    """One row per simulation: CR_AA, CR_AL, CR_total (fractions of steps), CD (cm), AS (m/s).
+    """One row per simulation: CR_AA, CR_AL, CR_total (fractions of steps), CD (cm), AS (m/s),
+    and the CPM Lab benchmark's TS (fraction of tries), CAA_100m, CAL_100m, LV_100m
+    (`sigmarl.evaluation.benchmark`).
 
     `cfg` supplies the observation design (it must be the one the policy was trained
     with); the scenario supplies map and agent count. The same `seed` gives every
@@ -83,7 +87,7 @@ def evaluate_policy(
     bar = Progress(steps, f"{cfg.model} seed {cfg.seed}", f"evaluate {scenario}", enabled=progress)
     for sc in rollout_steps(policy, cfg, scenario, n_sims, steps, seed, n_agents, device):
         bar.update(1)
-        sums = sums or _Sums.zeros(n_sims, sc.pos.device)
+        sums = sums or _Sums.zeros(n_sims, sc)
         sums.add(sc)
     bar.close()
     return sums.rows(scenario, steps, sc.n_agents)
@@ -135,10 +139,14 @@ class _Sums:
     al_steps: torch.Tensor  # steps with an agent-lane collision
     distance: torch.Tensor  # center-line deviations, summed over agents and steps
     speed: torch.Tensor
+    benchmark: BenchmarkSums
+    goals: torch.Tensor  # per route: a lap's distance, inf where the route has an exit
 
     @classmethod
-    def zeros(cls, n_sims: int, device: torch.device) -> _Sums:
-        return cls(*(torch.zeros(n_sims, device=device) for _ in range(4)))
+    def zeros(cls, n_sims: int, sc) -> _Sums:
+        device = sc.pos.device
+        return cls(*(torch.zeros(n_sims, device=device) for _ in range(4)),
+                   BenchmarkSums(n_sims, sc.n_agents, device), lap_goals(sc.road_map, device))
 
     def add(self, sc) -> None:
         """One step, as its infos report it: the state it ended in, before anyone respawned."""
@@ -146,16 +154,19 @@ class _Sums:
         self.al_steps += sc.lane_collision.any(-1)
         self.distance += sc.step_d_center.sum(-1)
         self.speed += sc.step_speed.sum(-1)
+        self.benchmark.add(sc.agent_collision, sc.lane_collision, sc.step_speed, sc.respawned, self.goals[sc.route])
 
     def rows(self, scenario: str, steps: int, n_agents: int) -> pd.DataFrame:
         agent_steps = steps * n_agents
         rows = pd.DataFrame({
             "scenario": scenario,
             "simulation": range(len(self.speed)),
-            "CR_AA": (self.aa_steps / steps).cpu().numpy(),
-            "CR_AL": (self.al_steps / steps).cpu().numpy(),
-            "CD": (100 * self.distance / agent_steps).cpu().numpy(),
-            "AS": (self.speed / agent_steps).cpu().numpy(),
+            CR_AA: (self.aa_steps / steps).cpu().numpy(),
+            CR_AL: (self.al_steps / steps).cpu().numpy(),
+            CD: (100 * self.distance / agent_steps).cpu().numpy(),
+            AS: (self.speed / agent_steps).cpu().numpy(),
         })
-        rows.insert(4, "CR_total", rows["CR_AA"] + rows["CR_AL"])
-        return rows
+        rows.insert(4, CR_TOTAL, rows[CR_AA] + rows[CR_AL])
+        for name, values in self.benchmark.columns().items():
+            rows[name] = values.cpu().numpy()
+        return rows[["scenario", "simulation", *MEASURED]]

@@ -15,6 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from sigmarl.report.draft import BuildOptions, Draft, Section, check_sections
+from sigmarl.report.sections.benchmark import BENCHMARK_TABLE
 from sigmarl.report.sections.compare import CURVE_VERDICTS, FINDINGS, REPLICATION, VERDICTS
 from sigmarl.report.sections.exports import FIGURES, LATEX, MARL_EVAL
 from sigmarl.report.sections.paper_policies import PAPER_POLICIES
@@ -55,6 +56,7 @@ SECTIONS: list[Section] = [
     STUDY,  # `study.md`
     TABLE,  # table.md, table.csv, summary.csv, composite_scores.csv, matrix.md
     STATISTICS,  # improvement, aggregate scores (needs TABLE's cells and composite scores)
+    BENCHMARK_TABLE,  # benchmark.md, benchmark.csv (where some rows measured its metrics)
     TRAINING,  # training.csv, training.md
     SEEDS,  # seeds.csv, seeds.md, seed_prediction.csv, slow_seeds.csv
     LATEX,  # table.tex (needs TABLE)
