@@ -88,7 +88,9 @@ def test_every_file_a_whole_report_writes_is_declared_by_its_section(tmp_path):
     assert None not in owner.values(), [n for n, s in owner.items() if s is None]
     assert sorted(p.name for p in report.paths.values()) == written
     silent = {s.name for s in SECTIONS} - set(owner.values())
-    assert silent == {"study"}  # it needs the columns' training configs, which only the command reads
+    # study: it needs the columns' training configs, which only the command reads; benchmark: the
+    # committed rows were written before its metrics were declared (not measured in them)
+    assert silent == {"study", "benchmark"}
 
 
 def test_the_reference_lists_every_declared_file_from_the_declarations():
