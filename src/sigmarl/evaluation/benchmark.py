@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import torch
 
-from sigmarl.env.params import DT
+from sigmarl.params import DT
 from sigmarl.metrics import CAA_100M, CAL_100M, CLEAR_STEPS, CONTACT_STEPS, LV_100M, MIN_DISTANCE_M, PER_M, TS
 
 
