@@ -44,7 +44,7 @@ def plot_paper_band(curves: pd.DataFrame, paper: pd.DataFrame, models: list[str]
     rows = -(-len(models) // PANELS_PER_ROW)
     cols = min(len(models), PANELS_PER_ROW)
     fig = Figure(figsize=(3.6 * cols, 2.9 * rows + 0.4), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False)).ravel()
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for ax, model in zip(axes, models, strict=False):
         _panel(ax, curves[curves["model"] == model], paper[paper["model"] == model].set_index("iteration")["reward"],
                model)
