@@ -289,3 +289,22 @@ def test_a_block_killed_anywhere_resumes_to_the_uninterrupted_end(tmp_path) -> N
         assert [{k: v for k, v in r.items() if k not in TIMING} for _, r in rows_a] == \
                [{k: v for k, v in r.items() if k not in TIMING} for _, r in rows_b]
         assert not (b / NEXT_RESUME_FILE).exists()
+
+
+@pytest.mark.parametrize("values", ["[1.5]", "[abc]", "[1,1]", "[-1]", "[4294967296]", "[true]", "range(3,6)", "[0,7]"])
+def test_train_and_sweep_read_seeds_alike(values) -> None:
+    """`sigmarl train seeds=...` and `sigmarl sweep seeds=...` take the same values, and refuse
+    the same ones in the same words: one reader of seeds (`sigmarl.config.study.seed_list`)."""
+    from sigmarl.config.study import seed_list
+    from sigmarl.sweep.command import read_command
+
+    def answer(read):
+        try:
+            return read()
+        except SigmarlError as e:
+            return str(e)
+
+    train = answer(lambda: block_seeds(f"seeds={values}"))
+    assert train == answer(lambda: seed_list(read_command([f"seeds={values}"]).seeds))
+    assert train == {"range(3,6)": [3, 4, 5], "[0,7]": [0, 7]}.get(values, train)
+    assert isinstance(train, list) == (values in ("range(3,6)", "[0,7]"))

@@ -23,6 +23,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from sigmarl.compose.validate import check
 from sigmarl.config import Config, as_config, register_configs
+from sigmarl.config.study import seed_list
 from sigmarl.config.suggest import hydra_error_message, unknown_keys_message
 from sigmarl.errors import SigmarlError
 from sigmarl.identity import fingerprint
@@ -151,7 +152,7 @@ def compose_block(overrides: Sequence[str] = ()) -> list[Config]:
 
 
 def block_seeds(override: str) -> list[int]:
-    """The seeds of `seeds=[0,1,2]` or `seeds=range(0,3)`: distinct non-negative integers."""
+    """The seeds of `seeds=[0,1,2]` or `seeds=range(0,3)` (`sigmarl.config.study.seed_list`)."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     try:
@@ -159,9 +160,4 @@ def block_seeds(override: str) -> list[int]:
         values = list(parsed.sweep_iterator()) if parsed.is_sweep_override() else parsed.value()
     except HydraException as e:
         raise SigmarlError(f"bad seeds=...: {hydra_error_message(e)}") from e
-    values = values if isinstance(values, list) else [values]
-    if not values or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in values):
-        raise SigmarlError(f"seeds=... must list non-negative integers, e.g. seeds=[0,1,2,3]; got {override.split('=', 1)[1]!r}")
-    if len(set(values)) < len(values):
-        raise SigmarlError(f"seeds=... lists a seed twice: {values}")
-    return [int(v) for v in values]
+    return seed_list(values if isinstance(values, list) else [values])

@@ -107,18 +107,11 @@ class TrafficEnv(VmasEnv):
         return self._output(with_reward=False)
 
 
-def validate(n_agents: int, mode: str, noise: float, num_envs: int, max_steps: int, flags: ObsConfig) -> None:
-    """Reject impossible settings before any stepping."""
+def check_agents(n_agents: int, flags: ObsConfig) -> None:
+    """What the composed config's one check (`sigmarl.compose.validate.check`, every key in its
+    range) cannot know: this environment's agent count, a scenario's rather than env.n_agents."""
     if n_agents < 1:
-        raise SigmarlError(f"env.n_agents must be at least 1, got {n_agents}")
-    if mode not in ("train", "test"):
-        raise SigmarlError(f"mode must be 'train' or 'test', got {mode!r}")
-    if noise < 0:
-        raise SigmarlError(f"obs.noise must be >= 0 (total width of the uniform noise), got {noise}")
-    if num_envs < 1 or max_steps < 1:
-        raise SigmarlError(f"the number of environments and env.max_steps must be positive, got {num_envs}, {max_steps}")
-    if flags.n_nearest < 0 or flags.n_ref_points < 1 or flags.n_ref_points > 3:
-        raise SigmarlError("obs.n_nearest must be >= 0 and obs.n_ref_points in 1..3")
+        raise SigmarlError(f"an environment needs at least 1 agent, got {n_agents}")
     if flags.n_nearest >= n_agents:  # never capped: a policy's input size would change with it
         raise SigmarlError(f"obs.n_nearest={flags.n_nearest} neighbours cannot be observed among {n_agents} agents")
 
@@ -155,7 +148,7 @@ def make_env(
     max_steps = int(max_steps if max_steps is not None else env_cfg.max_steps)
     seed = int(seed if seed is not None else cfg.seed)
     device = device or cfg.device
-    validate(n_agents, mode, float(cfg.obs.noise), num_envs, max_steps, cfg.obs)
+    check_agents(n_agents, cfg.obs)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
     check_room(road_map, n_agents)
     return TrafficEnv(
@@ -204,7 +197,7 @@ def make_scenario(
     does. Built and reset as VMAS' constructor does, so the same seed gives the same
     spawns and noise as `make_env(...).reset()`."""
     seed = int(seed if seed is not None else cfg.seed)
-    validate(n_agents, mode, float(cfg.obs.noise), num_envs, 1, cfg.obs)
+    check_agents(n_agents, cfg.obs)
     road_map = road_map or load_map(map_cfg if map_cfg is not None else cfg.map)
     check_room(road_map, n_agents)
     scenario = TrafficScenario()

@@ -19,7 +19,8 @@ from pathlib import Path
 
 from sigmarl.compose import compose_config, compose_seeds
 from sigmarl.compose.validate import check_eval, seeds_per_job
-from sigmarl.config import SEED_MAX, Config, StudyConfig
+from sigmarl.config import Config, StudyConfig
+from sigmarl.config.study import seed_list
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import eval_key
 from sigmarl.identity import check_label, differences, fingerprint
@@ -137,22 +138,10 @@ def sub_study_baseline(plan: SweepPlan) -> str:
 
 
 def _seeds(command: Command, study: StudyConfig) -> list[int]:
-    seeds = _seed_list(command.seeds if command.seeds is not None else study.seeds)
-    if not seeds:
+    values = command.seeds if command.seeds is not None else study.seeds
+    if not values:
         raise SigmarlError(f"study {study.name!r} declares no seeds; give seeds=[...]")
-    return seeds
-
-
-def _seed_list(values: Sequence[object]) -> list[int]:
-    """The seeds as whole numbers in the range `seed` takes, or one line naming the bad one."""
-    out = []
-    for value in values:
-        text = str(value).strip()
-        if not re.fullmatch(r"\d{1,10}", text) or int(text) > SEED_MAX:
-            raise SigmarlError(f"seeds: {text!r} is not a seed (a whole number in 0..{SEED_MAX}); "
-                               "give e.g. seeds=[0,1,2]")
-        out.append(int(text))
-    return out
+    return seed_list(values)
 
 
 def _labelled(command: Command, study: StudyConfig,

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 from sigmarl import crash
 from sigmarl.ablation import TIMINGS
 from sigmarl.errors import SigmarlError, end_status
-from sigmarl.metrics import METRIC_COLUMNS, METRICS, TABLE_DIGITS
+from sigmarl.metrics import CS, METRIC_COLUMNS, METRICS, TABLE_DIGITS
 from sigmarl.readers import read_run_config
 from sigmarl.run import REWARD_COLUMN, ROWS_FILE, Run
 from sigmarl.tracking.store import experiment_id
@@ -262,8 +262,8 @@ def log_report(client, experiment: str, composite: pd.DataFrame, paths: Iterable
     with _ended(client, rid):
         # what tells report runs apart, as params too: the runs table can show and compare them
         client.log_batch(rid, params=[Param(k, tags[k][:6000]) for k in REPORT_PARAMS if tags.get(k)])
-        for _, r in composite.dropna(subset=["CS"]).iterrows():
-            client.log_metric(rid, f"CS/{r['scenario']}/{r['model']}", round(float(r["CS"]), TABLE_DIGITS))
+        for _, r in composite.dropna(subset=[CS]).iterrows():
+            client.log_metric(rid, f"{CS}/{r['scenario']}/{r['model']}", round(float(r[CS]), TABLE_DIGITS))
         crash.point("report:logging")
         for path in paths:
             client.log_artifact(rid, str(path))
