@@ -27,7 +27,7 @@ import pandas as pd
 from sigmarl.errors import SigmarlError
 from sigmarl.report.build import BuildOptions, build_report
 from sigmarl.report.command import publish, staged
-from sigmarl.report.inputs.folder import read_results
+from sigmarl.report.inputs import read_results
 from sigmarl.stats import bootstrap as bs
 
 

@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 from sigmarl.cli import main as sigmarl
-from sigmarl.report.sections.table import TABLE_HEADING
+from sigmarl.report.sections import TABLE_HEADING
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = "results/paper-budget"  # relative to ROOT: the report's notes name run folders by it

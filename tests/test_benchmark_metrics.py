@@ -88,7 +88,7 @@ def _rows(with_benchmark: dict[tuple[str, int], list[float]]) -> pd.DataFrame:
 
 
 def test_the_benchmark_table_weighs_seeds_equally_and_shows_not_measured(tmp_path):
-    from sigmarl.report.sections.benchmark import benchmark_estimates, benchmark_markdown
+    from sigmarl.report.tables import benchmark_estimates, benchmark_markdown
 
     # M0: seed 0 TS 0.5 and 1.0 (mean 0.75), seed 1 TS NaN and 0.25 (mean 0.25): (0.75 + 0.25) / 2
     rows = _rows({("M0", 0): [0.5, 1.0], ("M0", 1): [float("nan"), 0.25]})
@@ -105,8 +105,7 @@ def test_the_benchmark_table_weighs_seeds_equally_and_shows_not_measured(tmp_pat
 def test_a_report_of_rows_from_before_the_benchmark_writes_no_benchmark_table(tmp_path):
     from sigmarl.report.build import build_report
     from sigmarl.report.draft import BuildOptions
-    from sigmarl.report.sections.benchmark import BENCHMARK_TABLE
-    from sigmarl.report.sections.table import TABLE
+    from sigmarl.report.sections import BENCHMARK_TABLE, TABLE
 
     build_report(_rows({}), BuildOptions(out_dir=tmp_path / "old", figures=False), sections=[TABLE, BENCHMARK_TABLE])
     assert not (tmp_path / "old" / "benchmark.md").exists()

@@ -7,8 +7,16 @@ import warnings
 import pandas as pd
 import pytest
 
-from sigmarl.report.table.composite import composite_score
-from sigmarl.report.table.paper import paper_values
+from sigmarl.metrics import COMPOSITE
+from sigmarl.report.cells import composite_of
+from sigmarl.report.tables import paper_values
+
+
+def composite_score(cr_total, cd, avg_speed):
+    """The score from the paper's three terms in its order (CR_total, CD, AS)."""
+    assert list(COMPOSITE) == ["CR_total", "CD", "AS"]
+    return composite_of(dict(zip(COMPOSITE, (cr_total, cd, avg_speed), strict=True)))
+
 
 MODELS = ["M0", "M1", "M2", "M3", "M4", "M5"]
 SCENARIOS = ["CPM", "Intersection", "On-Ramp", "Roundabout"]

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sigmarl.report.exports.figures import (
+from sigmarl.report.figures import (
     ProfileAxis,
     plot_heatmap,
     plot_performance_profiles,

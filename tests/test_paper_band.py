@@ -7,8 +7,8 @@ import numpy as np
 import pandas as pd
 from PIL import Image
 
-from sigmarl.report.exports.paper_band import definition, plot_paper_band
-from sigmarl.report.table.paper import paper_curves
+from sigmarl.report.figures import definition, plot_paper_band
+from sigmarl.report.tables import paper_curves
 
 
 def _curves(model: str, seeds: int, complete: list[bool]) -> pd.DataFrame:

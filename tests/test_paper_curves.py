@@ -6,8 +6,8 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from sigmarl.report.exports.figures import plot_training_curves
-from sigmarl.report.table.paper import paper_curves
+from sigmarl.report.figures import plot_training_curves
+from sigmarl.report.tables import paper_curves
 
 
 def test_shipped_curves_hold_the_quoted_figures():

@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 
 from sigmarl.compose import compose_config
-from sigmarl.report.table.provenance import provenance_markdown, run_records
+from sigmarl.report.study import provenance_markdown, run_records
 from sigmarl.run import Run
 from sigmarl.training import train
 

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from sigmarl.errors import SigmarlError
-from sigmarl.report.table.aggregate import aggregate
+from sigmarl.report.cells import aggregate
 from sigmarl.stats.intervals import mean_ci, t_critical
 
 T_975_DF2 = 4.302653  # Student t, 97.5% quantile, 2 degrees of freedom (printed tables)

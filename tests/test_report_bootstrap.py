@@ -6,9 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sigmarl.report.table.aggregate import cells, summarise
-from sigmarl.report.table.composite import composite_scores
-from sigmarl.report.table.scores import aggregate_scores, composite_intervals, improvement
+from sigmarl.report.cells import cells, composite_scores, summarise
+from sigmarl.report.scores import aggregate_scores, composite_intervals, improvement
 from sigmarl.stats import bootstrap as bs
 
 

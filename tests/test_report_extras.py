@@ -12,7 +12,7 @@ import pytest
 from scipy import stats
 
 from sigmarl.cli import main
-from sigmarl.report.exports.marl_eval import interval_data, marl_eval_data
+from sigmarl.report.marl_eval import interval_data, marl_eval_data
 from sigmarl.stats.profiles import profile, profile_replicates, seed_band
 
 FIXTURE = Path(__file__).parent / "data" / "results"

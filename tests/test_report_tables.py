@@ -9,10 +9,8 @@ import pytest
 
 from sigmarl.errors import SigmarlError
 from sigmarl.report import BuildOptions, build_report
-from sigmarl.report.table.aggregate import aggregate
-from sigmarl.report.table.composite import composite_scores
-from sigmarl.report.table.paper import paper_values
-from sigmarl.report.table.tables import build_table, to_csv_frame, to_latex, to_markdown
+from sigmarl.report.cells import aggregate, composite_scores
+from sigmarl.report.tables import build_table, paper_values, to_csv_frame, to_latex, to_markdown
 
 MODELS = ["M0", "M1", "M2", "M3", "M4", "M5"]
 SCENARIOS = ["CPM", "Intersection", "On-Ramp", "Roundabout"]

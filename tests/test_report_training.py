@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from sigmarl.cli import main
-from sigmarl.report.table.paper import paper_curves
-from sigmarl.report.table.training import (
+from sigmarl.report.tables import paper_curves
+from sigmarl.report.training import (
     LAST,
     paper_last_rewards,
     training_markdown,

@@ -9,7 +9,7 @@ from test_report_tables import hand_rows
 
 from sigmarl.compose import compose_config
 from sigmarl.report import BuildOptions, build_report
-from sigmarl.report.table.header import reward_differs, shared_settings, study_markdown
+from sigmarl.report.study import reward_differs, shared_settings, study_markdown
 
 
 def _rows(models: dict[str, list[int]], sims: int = 2) -> pd.DataFrame:

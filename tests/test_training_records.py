@@ -19,7 +19,7 @@ from cli_errors import one_line_exit_2
 from sigmarl.cli import main
 from sigmarl.errors import SigmarlError
 from sigmarl.readers import MAX_ITERATION
-from sigmarl.report.table.training import training_summary
+from sigmarl.report.training import training_summary
 from sigmarl.training import checkpoint as ckpt
 
 FIXTURE = Path(__file__).parent / "data" / "results"  # the smallest results folder: 3 iterations a run

@@ -59,16 +59,19 @@ UPWARD: dict[tuple[str, str], str] = {}
 # Inside the report (one room of the floors above), its groups in floors of their own, by the
 # same rule: a module imports from its own group's floor or one below.
 REPORT_FLOORS: tuple[Floor, ...] = (
-    Floor("inputs", "what a report is built from (run folders, columns, coverage) and how numbers "
-          "are written", ("sigmarl.report.inputs", "sigmarl.report.format")),
-    Floor("table", "Table I, its numbers and notes, the training curves' summary", ("sigmarl.report.table",)),
+    Floor("inputs", "what a report is built from: run folders and the paper's policies' rows, which runs "
+          "make each column and which are left out", ("sigmarl.report.inputs", "sigmarl.report.columns")),
+    Floor("table", "Table I: its cells and composite scores, the scores over scenarios, the table in its "
+          "formats with its notes and the paper's figures, the study page, the training curves' summary",
+          ("sigmarl.report.cells", "sigmarl.report.scores", "sigmarl.report.tables", "sigmarl.report.study",
+           "sigmarl.report.training")),
     Floor("compare", "verdicts, interactions, curves compared, replication, findings",
           ("sigmarl.report.compare",)),
     Floor("seeds", "each seed's figures, the next seed, `--plan`, `seeds=auto`'s rounds",
           ("sigmarl.report.seeds",)),
-    Floor("exports", "figures and marl-eval's JSON", ("sigmarl.report.exports",)),
+    Floor("exports", "figures and marl-eval's JSON", ("sigmarl.report.figures", "sigmarl.report.marl_eval")),
     Floor("seam", "`Section`, `Draft`, `BuildOptions`", ("sigmarl.report.draft",)),
-    Floor("sections", "each group's sections", ("sigmarl.report.sections",)),
+    Floor("sections", "every group's sections", ("sigmarl.report.sections",)),
     Floor("build and command", "`build_report` and its registry of sections, the command, the package's "
           "own names (`__init__.py`)", ("sigmarl.report.build", "sigmarl.report.command", "sigmarl.report.console",
           "sigmarl.report")),

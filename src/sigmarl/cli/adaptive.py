@@ -27,7 +27,7 @@ import pandas as pd
 from sigmarl.errors import SigmarlError
 from sigmarl.readers import read_json
 from sigmarl.report.compare.verdicts import design_of
-from sigmarl.report.inputs.folder import RunFolder, rows_of
+from sigmarl.report.inputs import RunFolder, rows_of
 from sigmarl.report.seeds.rounds import key, next_round
 from sigmarl.run import Run, write_atomic
 from sigmarl.stats.sequential import first_decidable_look

@@ -1,7 +1,7 @@
 """`build_report`: evaluation rows in, the report's files out, one section after another.
 
-`SECTIONS` is the registry: each `Section` (`report.draft`) lives beside what it draws
-(`table/`, `seeds/`, `compare/`, `exports/`), and a new one is its module and one line here.
+`SECTIONS` is the registry: each `Section` (`report.draft`) is declared in `report.sections`,
+and a new one is its declaration and one line here.
 A section reads what the ones before it left on the draft, so the order is the order they
 depend on: the table before the statistics and the findings, the verdicts before the
 findings, the training summary before the curve verdicts.
@@ -14,14 +14,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from sigmarl.report import sections as sec
+from sigmarl.report.cells import model_order, validate_rows
 from sigmarl.report.draft import BuildOptions, Draft, Section, check_sections
-from sigmarl.report.sections.benchmark import BENCHMARK_TABLE
-from sigmarl.report.sections.compare import CURVE_VERDICTS, FINDINGS, REPLICATION, VERDICTS
-from sigmarl.report.sections.exports import FIGURES, LATEX, MARL_EVAL
-from sigmarl.report.sections.paper_policies import PAPER_POLICIES
-from sigmarl.report.sections.seeds import SEEDS, TRAINING
-from sigmarl.report.sections.table import STATISTICS, STUDY, TABLE
-from sigmarl.report.table.aggregate import model_order, validate_rows
 
 # What build_report returns: the draft its sections finished (the Markdown to print, the frames
 # behind it, the files written).
@@ -53,19 +48,19 @@ def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame
 
 
 SECTIONS: list[Section] = [
-    STUDY,  # `study.md`
-    TABLE,  # table.md, table.csv, summary.csv, composite_scores.csv, matrix.md
-    STATISTICS,  # improvement, aggregate scores (needs TABLE's cells and composite scores)
-    BENCHMARK_TABLE,  # benchmark.md, benchmark.csv (where some rows measured its metrics)
-    TRAINING,  # training.csv, training.md
-    SEEDS,  # seeds.csv, seeds.md, seed_prediction.csv, slow_seeds.csv
-    LATEX,  # table.tex (needs TABLE)
-    VERDICTS,  # verdicts.csv, verdicts.md, interactions.csv
-    FINDINGS,  # findings.md (needs TABLE and VERDICTS)
-    MARL_EVAL,  # marl_eval*.json
-    CURVE_VERDICTS,  # curve_verdicts.*, paper_seeds.csv (needs TRAINING)
-    REPLICATION,  # replication.csv, replication.md
-    PAPER_POLICIES,  # paper_policies.csv, paper_policies.md (the paper's own policies, imported rows)
-    FIGURES,  # *.png (needs TABLE)
+    sec.STUDY,  # `study.md`
+    sec.TABLE,  # table.md, table.csv, summary.csv, composite_scores.csv, matrix.md
+    sec.STATISTICS,  # improvement, aggregate scores (needs TABLE's cells and composite scores)
+    sec.BENCHMARK_TABLE,  # benchmark.md, benchmark.csv (where some rows measured its metrics)
+    sec.TRAINING,  # training.csv, training.md
+    sec.SEEDS,  # seeds.csv, seeds.md, seed_prediction.csv, slow_seeds.csv
+    sec.LATEX,  # table.tex (needs TABLE)
+    sec.VERDICTS,  # verdicts.csv, verdicts.md, interactions.csv
+    sec.FINDINGS,  # findings.md (needs TABLE and VERDICTS)
+    sec.MARL_EVAL,  # marl_eval*.json
+    sec.CURVE_VERDICTS,  # curve_verdicts.*, paper_seeds.csv (needs TRAINING)
+    sec.REPLICATION,  # replication.csv, replication.md
+    sec.PAPER_POLICIES,  # paper_policies.csv, paper_policies.md (the paper's own policies, imported rows)
+    sec.FIGURES,  # *.png (needs TABLE)
 ]
 check_sections(SECTIONS)

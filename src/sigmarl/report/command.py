@@ -17,14 +17,19 @@ from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import protocol_key
 from sigmarl.readers import read_run_config
+from sigmarl.report import inputs
 from sigmarl.report.build import BuildOptions, Report, build_report
+from sigmarl.report.cells import label_order
+from sigmarl.report.columns import (
+    belongs,
+    check,
+    check_columns,
+    left_out,
+    one_config_per_run,
+    variant_configs,
+)
 from sigmarl.report.compare.verdicts import design_of
-from sigmarl.report.inputs.columns import check_columns, one_config_per_run, variant_configs
-from sigmarl.report.inputs.coverage import belongs, check, left_out
-from sigmarl.report.inputs.folder import checkpoint_of, read_many, read_results, run_folders
-from sigmarl.report.inputs.imported import imported_folder_beside, read_imported
-from sigmarl.report.table.aggregate import label_order
-from sigmarl.report.table.provenance import run_records
+from sigmarl.report.study import run_records
 from sigmarl.run import Run
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, open_tracker, records
@@ -130,7 +135,7 @@ def what_it_reports(report: Report, cfg: Config, options: ReportOptions) -> dict
 def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path | None = None,
                             options: ReportOptions = ReportOptions()) -> Report:
     """The report of a results folder, or of several (a study whose variants live in different
-    folders, e.g. reused runs of another study), `sigmarl.report.inputs.folder`: no MLflow reads, no
+    folders, e.g. reused runs of another study), `sigmarl.report.inputs`: no MLflow reads, no
     training.
 
     Logged as a report run to the tracker (experiment `cfg.tracking.experiment`).
@@ -138,7 +143,7 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     """
     check_baseline(cfg, options)
     roots = [Path(r) for r in (root if isinstance(root, list) else [root])]
-    results = read_results(roots[0], options.partial) if len(roots) == 1 else read_many(roots, options.partial)
+    results = inputs.read_many(roots, options.partial)
     results.rows = only_scenarios(results.rows, options.scenarios, ", ".join(map(str, roots)))
     root = roots[0]
     out_dir = out_dir or report_folder(roots[0].resolve().name if len(roots) == 1 else cfg.study.name, cfg, options)
@@ -148,11 +153,11 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     notes = _coverage(results.rows, cfg, options, folders, ", ".join(map(str, roots)), runs_noted=True)
     tracker = open_tracker(cfg)  # checked before any work
     configs = _folder_configs(results.runs)
-    beside = imported_folder_beside(root) if options.compare_paper else None  # the paper's own policies
+    beside = inputs.imported_folder_beside(root) if options.compare_paper else None  # the paper's own policies
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
                     options, extra_notes=[*results.notes, *notes], configs=configs,
                     provenance=run_records(folders, results.rows),
-                    imported=read_imported(beside) if beside is not None else None)
+                    imported=inputs.read_imported(beside) if beside is not None else None)
     tracker.log_report(report.composite, report.paths.values(),
                        {"source": ",".join(str(r.resolve()) for r in roots), **what_it_reports(report, cfg, options)},
                        source=",".join(str(r) for r in roots))
@@ -272,7 +277,7 @@ def _study_folders(cfg: Config) -> tuple[list[tuple[str, int, Path]], str]:
     found = []
     for root in roots:
         try:
-            found += [(r.label, r.seed, r.path) for r in run_folders(root)]
+            found += [(r.label, r.seed, r.path) for r in inputs.run_folders(root)]
         except SigmarlError:  # no folder there, or none inside it
             pass
     return found, ", ".join(map(str, roots))
@@ -293,7 +298,7 @@ def _folder_checkpoint(results, root: Path, cfg: Config) -> Path:
     from sigmarl.evaluation.protocol import checkpoint_name
 
     baseline = cfg.study.baseline
-    path = checkpoint_of(results.runs, baseline, checkpoint_name(cfg.eval.checkpoint))
+    path = inputs.checkpoint_of(results.runs, baseline, checkpoint_name(cfg.eval.checkpoint))
     if path is None:
         raise SigmarlError(f"animations need {baseline}'s {checkpoint_name(cfg.eval.checkpoint)} in {root}; "
                            "none found")

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 from collections import Counter
 
-from sigmarl.metrics import BY_NAME, TABLE_DIGITS
+from sigmarl.metrics import HEADLINE, TABLE_DIGITS, shown_unit
 from sigmarl.report.draft import Draft
 
 MAX_LINES = 40
-HEADLINE = "CR_total"  # Table I's headline metric: collisions of either kind, % of steps
 VERDICT_ORDER = ("better", "worse", "equivalent", "undecided")
 LEFT_OUT_LINES = 5  # notes of runs or rows left out, at most (then a count)
 _OTHER_LINES = 17  # lines the console report spends besides the table's scenario rows
@@ -22,7 +21,7 @@ def console_text(report: Draft, verbose: bool = False) -> str:
 
 def _short(report: Draft) -> list[str]:
     out_dir = _folder(report)
-    lines = [f"{HEADLINE} ({_unit()}) per scenario and column, mean over seeds; the whole table and its notes: "
+    lines = [f"{HEADLINE} ({shown_unit(HEADLINE)}) per scenario and column, mean over seeds; the whole table and its notes: "
              f"{out_dir}/table.md", ""]
     lines += _headline_table(report)
     if (verdicts := _verdict_counts(report)) is not None:
@@ -74,10 +73,6 @@ def _verdict_counts(report: Draft) -> str | None:
 def _folder(report: Draft) -> str:
     paths = list(report.paths.values())
     return str(paths[0].parent) if paths else str(report.options.out_dir)
-
-
-def _unit() -> str:
-    return "%" if BY_NAME[HEADLINE].unit == "percent" else BY_NAME[HEADLINE].unit
 
 
 def _full(report: Draft) -> str:

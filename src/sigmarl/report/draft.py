@@ -1,7 +1,8 @@
 """The seam of the report: a `Section` is one part of it (a name, the files it may write, and the
 function that builds them from a `Draft`), and `build.SECTIONS` is the list of them in order.
 
-A new section is one module holding its `Section` and one line in `build.SECTIONS`. It reads
+A new section is its `Section` (in `report.sections`, or a module of its own) and one line in
+`build.SECTIONS`. It reads
 the rows, the options and what earlier sections left on the draft, writes its files through
 `Draft.write` (or `Draft.file` for a figure), and leaves on the draft what later sections or the
 caller need. A file it does not declare is refused, so the reference page of the report's files
@@ -21,7 +22,7 @@ import pandas as pd
 from sigmarl.ablation import flags_of, paper_model
 from sigmarl.errors import SigmarlError
 from sigmarl.report.compare.verdicts import Design
-from sigmarl.report.table.tables import ResultTable
+from sigmarl.report.tables import ResultTable
 
 # Fixed formatting of every CSV's floats: the same rows give byte-identical files.
 FLOAT_FORMAT = "%.10g"
@@ -99,16 +100,16 @@ class Draft:
     options: BuildOptions
     curves: pd.DataFrame | None  # model, seed, iteration, reward (None: no training curves read)
     models: list[str] = field(default_factory=list)  # the columns, in order
-    cells: list = field(default_factory=list)  # see `table.aggregate.cells`
+    cells: list = field(default_factory=list)  # see `cells.cells`
     summary: pd.DataFrame | None = None  # one row per (scenario, model, metric)
     composite: pd.DataFrame | None = None  # scenario, model, CS, note, ci_low, ci_high
     table: ResultTable | None = None
     markdown: str = ""  # table.md, what the command prints
     notes: list[str] = field(default_factory=list)
-    improvement: pd.DataFrame | None = None  # see `table.scores.improvement`
-    aggregates: pd.DataFrame | None = None  # see `table.scores.aggregate_scores`
+    improvement: pd.DataFrame | None = None  # see `scores.improvement`
+    aggregates: pd.DataFrame | None = None  # see `scores.aggregate_scores`
     statistics: str = ""  # Markdown of the two frames above
-    training: pd.DataFrame | None = None  # see `table.training.training_summary`
+    training: pd.DataFrame | None = None  # see `training.training_summary`
     verdicts: pd.DataFrame | None = None  # see `compare.verdicts.verdict_table`
     verdicts_markdown: str = ""
     paths: dict[str, Path] = field(default_factory=dict)  # each file written, by its key

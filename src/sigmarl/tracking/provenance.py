@@ -3,7 +3,7 @@ CPU and GPU models, the thread count, and the sigmarl commit with whether its tr
 
 Each start of a training (the first and every resume) adds one record to the run folder's
 `provenance.json` and sets the same values as `provenance.*` tags of its MLflow run. The report's
-study page lists them per column (`report/table/provenance.py`); a run folder from before this
+study page lists them per column (`report/study.py`); a run folder from before this
 has no file, and reads as "not recorded".
 """
 

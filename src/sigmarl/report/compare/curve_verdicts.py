@@ -30,8 +30,8 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.report.compare.verdicts import Design
-from sigmarl.report.format import signed
-from sigmarl.report.table.training import LAST
+from sigmarl.report.tables import signed
+from sigmarl.report.training import LAST
 from sigmarl.stats.engine import Null, difference, holm
 from sigmarl.stats.intervals import t_critical
 

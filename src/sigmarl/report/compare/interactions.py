@@ -22,7 +22,7 @@ import pandas as pd
 
 from sigmarl.metrics import shown_unit
 from sigmarl.report.compare.verdicts import Design, margin_unit, seed_values
-from sigmarl.report.format import p_text, signed
+from sigmarl.report.tables import p_text, signed
 from sigmarl.stats.engine import Null, holm, interaction
 
 COLUMNS = [

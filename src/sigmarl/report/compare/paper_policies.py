@@ -31,10 +31,9 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.ablation import flags_of, paper_model
+from sigmarl.report.cells import trim_collisions
 from sigmarl.report.compare.verdicts import seed_values
-from sigmarl.report.format import signed
-from sigmarl.report.table.aggregate import trim_collisions
-from sigmarl.report.table.paper import paper_values
+from sigmarl.report.tables import paper_values, signed
 
 METRIC = "CR_total"
 TAIL = 0.9  # "in our seeds' tail": worse than at least this share of our seeds of the model

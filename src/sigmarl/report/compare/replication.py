@@ -35,15 +35,14 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import COMPOSITE
+from sigmarl.report.cells import trim_collisions
 from sigmarl.report.compare.interactions import (
     CLAIM_COLUMNS,
     claim_interactions,
     claim_interactions_lines,
 )
 from sigmarl.report.compare.verdicts import Design, seed_values
-from sigmarl.report.format import p_text, signed
-from sigmarl.report.table.aggregate import trim_collisions
-from sigmarl.report.table.paper import paper_values, struck_out
+from sigmarl.report.tables import p_text, paper_values, signed, struck_out
 from sigmarl.stats import bootstrap as bs
 from sigmarl.stats.engine import Null, difference, holm, seeds_needed
 

@@ -40,7 +40,7 @@ import pandas as pd
 
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import BY_NAME, METRICS, shown_unit
-from sigmarl.report.format import p_text, seeds_text, signed
+from sigmarl.report.tables import p_text, seeds_text, signed
 from sigmarl.stats.engine import comparison_test
 from sigmarl.stats.power import seeds_for_difference, seeds_for_equivalence
 from sigmarl.stats.tests import Test, holm, verdict

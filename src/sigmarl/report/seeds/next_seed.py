@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from sigmarl.report.format import p_text
+from sigmarl.report.tables import p_text
 
 LEVEL = 0.95
 PREDICTION_COLUMNS = ["model", "scenario", "n_seeds", "mean", "sd", "pi_low", "pi_high", "min", "max",

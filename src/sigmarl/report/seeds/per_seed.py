@@ -14,9 +14,9 @@ import pandas as pd
 from scipy import stats
 
 from sigmarl.metrics import label, scaled
-from sigmarl.report.format import p_text, signed
-from sigmarl.report.table.aggregate import model_order, scenario_order
-from sigmarl.report.table.training import LAST
+from sigmarl.report.cells import model_order, scenario_order
+from sigmarl.report.tables import p_text, signed
+from sigmarl.report.training import LAST
 
 RATES = ["CR_total", "CR_AA", "CR_AL"]
 MIN_SEEDS = 5  # fewer seeds than this give no useful rank correlation

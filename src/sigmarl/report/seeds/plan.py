@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
+from sigmarl.report.cells import model_order, validate_rows
 from sigmarl.report.compare.verdicts import (
     Design,
     design_of,
@@ -23,9 +24,8 @@ from sigmarl.report.compare.verdicts import (
     verdict_label,
     verdict_table,
 )
-from sigmarl.report.format import signed
-from sigmarl.report.inputs.folder import read_many, read_results
-from sigmarl.report.table.aggregate import model_order, validate_rows
+from sigmarl.report.inputs import read_many, read_results
+from sigmarl.report.tables import signed
 from sigmarl.stats import permutation, planning
 from sigmarl.stats.power import seeds_for_difference, seeds_for_equivalence
 

@@ -1,4 +1,18 @@
-"""Report figures, drawn with matplotlib's object API on the Agg canvas (no pyplot state)."""
+"""Report figures, drawn with matplotlib's object API on the Agg canvas (no pyplot state).
+
+`plot_paper_band`: the paper's training curves (its Fig. 5, one seed a model) against our seeds'
+band, a panel per model: where the paper's one run lies among ours at each iteration, and the iteration of the
+policy its Table I evaluated (the best mean episode reward of its run).
+
+The two are logged differently. The paper's collector never resets, so its curve is the mean
+return of whole episodes. Ours resets each batch and logs the cut segment as an episode
+(`episode_reward_mean`, "batch-cut"); runs trained since also log the estimate of the paper's
+quantity (`episode_reward_mean_complete`). A panel draws our seeds on that estimate where every
+seed of the model has it, else batch-cut, and says which. Batch-cut at the end of training sits
+`OFFSET` below the paper's definition (two fixed policies, `benchmarks/paper_episode_reward.py`,
+docs/deviations.md): the batch-cut panels of those two models mark our last iterations' mean
+raised by it, the comparison on one definition that the runs allow.
+"""
 
 from __future__ import annotations
 
@@ -13,17 +27,16 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
-from sigmarl.metrics import BY_NAME, label
+from sigmarl.metrics import BY_NAME, COLLISION_COLUMNS, FIGURES, HEADLINE, label, names
 from sigmarl.report.compare.verdicts import seed_values
+from sigmarl.report.training import LAST
 from sigmarl.stats import bootstrap as bs
 from sigmarl.stats.profiles import scenario_profiles, seed_band
 
-DISTRIBUTION_METRICS = {name: (label(name), BY_NAME[name].scale) for name in ("CR_total", "CD", "AS")}
+DISTRIBUTION_METRICS = {name: (label(name), BY_NAME[name].scale) for name in names(FIGURES)}
 
 
-def plot_distributions(
-    rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path
-) -> Path:
+def plot_distributions(rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path) -> Path:
     """Box plots of CR_total, CD and AS over the simulations: a row of panels per scenario.
 
     Every simulation is also drawn as a dot, since with 32 simulations and mostly zero
@@ -31,9 +44,7 @@ def plot_distributions(
     symlog, so a model that collides in 40 % of steps leaves the others' tenths of a percent
     visible.
     """
-    fig = Figure(
-        figsize=(3.6 * len(DISTRIBUTION_METRICS), 2.6 * len(scenarios)), layout="constrained"
-    )
+    fig = Figure(figsize=(3.6 * len(DISTRIBUTION_METRICS), 2.6 * len(scenarios)), layout="constrained")
     axes = np.atleast_2d(fig.subplots(len(scenarios), len(DISTRIBUTION_METRICS), squeeze=False))
     rng = np.random.default_rng(0)  # fixed jitter: the same rows give the same picture
     positions = np.arange(1, len(models) + 1)
@@ -44,12 +55,7 @@ def plot_distributions(
             data = [(sc.loc[sc["model"] == m, metric].dropna() * scale).to_numpy() for m in models]
             filled = [k for k, d in enumerate(data) if len(d)]
             if filled:
-                ax.boxplot(
-                    [data[k] for k in filled],
-                    positions=positions[filled],
-                    widths=0.6,
-                    showfliers=False,
-                )
+                ax.boxplot([data[k] for k in filled], positions=positions[filled], widths=0.6, showfliers=False)
             for k in filled:
                 jitter = rng.uniform(-0.15, 0.15, len(data[k]))
                 ax.plot(positions[k] + jitter, data[k], ".", ms=2, alpha=0.5, color="tab:blue")
@@ -57,7 +63,7 @@ def plot_distributions(
             ax.set_xlim(0.4, len(models) + 0.6)
             ax.set_title(f"{scenario}: {title}", fontsize=9)
             ax.grid(axis="y", alpha=0.3)
-            if metric == "CR_total":
+            if metric in COLLISION_COLUMNS:
                 # linear up to 0.1 %, logarithmic above: one model at 40 % would otherwise
                 # flatten the others' 0-2 % onto the axis
                 top = max([float(d.max()) for d in data if len(d)] + [0.1]) * 1.6
@@ -69,9 +75,7 @@ def plot_distributions(
                         Line2D([], [], color="tab:orange", label="median"),
                         Line2D([], [], ls="", marker=".", color="tab:blue", label="one simulation")],
                loc="outside lower center", ncols=3, fontsize=8, frameon=False)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, path, 120)
 
 
 def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | None = None,
@@ -112,8 +116,12 @@ def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | N
     ax.set_title("training reward per iteration" + (": mean over seeds, band: their range" if banded else ""),
                  fontsize=9)
     ax.legend(ncols=2, fontsize=8)
+    return _save(fig, path, 120)
+
+
+def _save(fig: Figure, path: Path, dpi: int) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=dpi)
     return path
 
 
@@ -190,7 +198,7 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
     with CR_total above tau, one panel per scenario and one over all scenarios (their mean),
     with 95% two-level (seeds, then simulations) bootstrap bands; a grid of panels. Lower is
     better."""
-    values = seed_values(rows, "CR_total")  # in %
+    values = seed_values(rows, HEADLINE)  # in %
     panels = [*scenarios, "all scenarios"] if len(scenarios) > 1 else list(scenarios)
     ncols = min(PANELS_PER_ROW, len(panels))
     nrows = -(-len(panels) // ncols)
@@ -215,19 +223,17 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
         ax.set_xticks(axis.ticks, [f"{x:g}" for x in axis.ticks])  # round values; symlog's own overlap at 0
         ax.set_ylim(0, 1.02)
         ax.set_title(panel, fontsize=10)
-        ax.set_xlabel(f"τ: {label('CR_total')}")
-        ax.set_ylabel("fraction with CR_total > τ")
+        ax.set_xlabel(f"τ: {label(HEADLINE)}")
+        ax.set_ylabel(f"fraction with {HEADLINE} > τ")
         ax.grid(alpha=0.3)
     for ax in axes[len(panels):]:
         ax.set_visible(False)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 8), fontsize=10,
                frameon=False, title="model", title_fontsize=10)
-    fig.suptitle("performance profiles of CR_total (lower is better; band: 95% bootstrap over seeds "
+    fig.suptitle(f"performance profiles of {HEADLINE} (lower is better; band: 95% bootstrap over seeds "
                  "and simulations)", fontsize=10)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    return path
+    return _save(fig, path, 110)
 
 
 def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str] | None = None,
@@ -252,13 +258,11 @@ def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str] | Non
     _iteration_axis(ax)
     ax.set_title("mean training reward over seeds, 95% bootstrap band over seeds", fontsize=9)
     ax.legend(ncols=2, fontsize=8)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, path, 120)
 
 
 def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str], path: Path,
-                 metric: str = "CR_total") -> Path:
+                 metric: str = HEADLINE) -> Path:
     """A models x scenarios matrix of one metric's estimates (the table's cells), each cell
     annotated with its estimate and 95 % interval; colour on a log scale, so that 0.05 % and
     5 % both show. More than HEATMAP_COLUMNS scenarios are split into stacked panels, so that
@@ -290,6 +294,62 @@ def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str],
         ax.set_yticks(range(len(models)), models, fontsize=9)
     fig.colorbar(image, ax=list(axes), label=f"{label(metric)}, log scale", shrink=0.8)
     fig.suptitle(f"{metric}: mean over seeds [95% interval over seeds and simulations]", fontsize=10)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    return path
+    return _save(fig, path, 100)
+
+
+# the paper's definition minus batch-cut at the end of training, measured on M0 and M5 seed 0
+# `best.pt`; marked on those models' panels only (M1, which barely moves, ends episodes otherwise)
+OFFSET = (0.50, 0.62)
+OFFSET_MODELS = ("M0", "M5")
+
+
+def definition(curves: pd.DataFrame) -> tuple[str, str]:
+    """(column, its name): the complete-episode estimate where every seed logged it, else batch-cut."""
+    if "reward_complete" in curves and curves.groupby("seed")["reward_complete"].apply(lambda s: s.notna().all()).all():
+        return "reward_complete", "complete-episode estimate"
+    return "reward", "batch-cut"
+
+
+def plot_paper_band(curves: pd.DataFrame, paper: pd.DataFrame, models: list[str], path: Path) -> Path | None:
+    """One panel per model of `models` that both have: our seeds' range and median per
+    iteration, the paper's curve, its evaluated policy's iteration; None where none has both."""
+    models = [m for m in models if (curves["model"] == m).any() and (paper["model"] == m).any()]
+    if not models:
+        return None
+    rows = -(-len(models) // PANELS_PER_ROW)
+    cols = min(len(models), PANELS_PER_ROW)
+    fig = Figure(figsize=(3.6 * cols, 2.9 * rows + 0.4), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    for ax, model in zip(axes, models, strict=False):
+        _panel(ax, curves[curves["model"] == model], paper[paper["model"] == model].set_index("iteration")["reward"],
+               model)
+    for ax in axes[len(models):]:
+        ax.set_visible(False)
+    handles = {label: h for ax in axes for h, label in zip(*ax.get_legend_handles_labels(), strict=True)}
+    fig.legend(handles.values(), handles.keys(), fontsize=7, loc="outside lower center", ncols=len(handles))
+    fig.suptitle("The paper's one run (whole episodes) against our seeds, mean episode reward per iteration",
+                 fontsize=9)
+    return _save(fig, path, 120)
+
+
+def _panel(ax, ours: pd.DataFrame, paper: pd.Series, model: str) -> None:
+    column, name = definition(ours)
+    per_seed = ours.pivot_table(index="iteration", columns="seed", values=column)
+    n = per_seed.shape[1]
+    ax.fill_between(per_seed.index, per_seed.min(axis=1), per_seed.max(axis=1), color="tab:blue", alpha=0.25, lw=0,
+                    label=f"ours, range of {n} seeds")
+    ax.plot(per_seed.index, per_seed.median(axis=1), color="tab:blue", lw=1.0, label="ours, median")
+    ax.plot(paper.index, paper.to_numpy(), color="black", lw=1.0, label="paper (whole episodes)")
+    best = int(paper.idxmax())
+    ax.plot([best], [paper.loc[best]], marker="v", color="tab:red", ms=6, ls="none",
+            label="paper's evaluated policy")
+    if column == "reward" and model in OFFSET_MODELS:  # our last iterations on the paper's definition, by the measured offset
+        last = per_seed.index[-1]
+        mean = float(per_seed.tail(LAST).mean(axis=1).mean())
+        ax.errorbar([last + 4], [mean + sum(OFFSET) / 2], yerr=[[(OFFSET[1] - OFFSET[0]) / 2]], fmt="o", ms=3,
+                    color="tab:green", capsize=2, label=f"ours, last {LAST} its., + offset {OFFSET[0]:.2f}–{OFFSET[1]:.2f}")
+    ax.set_title(f"{model} (ours: {name})", fontsize=8)
+    ax.set_xlabel("iteration", fontsize=8)
+    ax.set_ylabel("mean episode reward", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.grid(alpha=0.3)

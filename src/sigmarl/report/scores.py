@@ -18,30 +18,28 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from sigmarl.metrics import COMPOSITE, METRIC_COLUMNS
-from sigmarl.report.table.aggregate import Cell, scenario_order, trim_collisions, validate_rows
+from sigmarl.metrics import COMPOSITE, CS, HEADLINE, METRIC_COLUMNS
+from sigmarl.report.cells import Cell, scenario_order, trim_collisions, validate_rows
+from sigmarl.report.tables import MISSING, TABLE_DIGITS, interval_text
 from sigmarl.stats import bootstrap as bs
 
-_SCORE_SIGNS = COMPOSITE
-_COLS = [METRIC_COLUMNS.index(m) for m in _SCORE_SIGNS]
-CS_COLUMNS = ["scenario", "model", "CS", "ci_low", "ci_high"]
+_COLS = [METRIC_COLUMNS.index(m) for m in COMPOSITE]
 AGGREGATE_COLUMNS = ["model", "statistic", "value", "ci_low", "ci_high", "n_scenarios", "n_runs"]
-IMPROVEMENT_COLUMNS = [
-    "scenario", "reference", "model", "metric", "probability", "ci_low", "ci_high", "n_seeds_reference",
-    "n_seeds_model",
-]  # fmt: skip
+IMPROVEMENT_COLUMNS = ["scenario", "reference", "model", "metric", "probability", "ci_low", "ci_high",
+                       "n_seeds_reference", "n_seeds_model"]
+OVERALL = "mean over scenarios"
 
 
 def score_weights(cell_list: list[Cell], composite: pd.DataFrame) -> dict[str, np.ndarray]:
-    """Per scenario with a defined composite score: signed weights on (CR_total, CD, AS).
+    """Per scenario with a defined composite score: signed weights on the composite metrics.
 
     The normalisers are the means over the models that have a score, as in `composite_scores`.
     """
     out = {}
-    scored = composite.dropna(subset=["CS"])
+    scored = composite.dropna(subset=[CS])
     for scenario, g in scored.groupby("scenario", sort=False):
         points = np.array([c.point[_COLS] for c in cell_list if c.scenario == scenario and c.model in set(g["model"])])
-        out[scenario] = np.array(list(_SCORE_SIGNS.values())) / points.mean(0)
+        out[scenario] = np.array(list(COMPOSITE.values())) / points.mean(0)
     return out
 
 
@@ -50,12 +48,10 @@ def _seed_scores(values: np.ndarray, w: np.ndarray) -> np.ndarray:
     return values[..., _COLS] @ w
 
 
-def composite_intervals(
-    cell_list: list[Cell], composite: pd.DataFrame, level: float = bs.LEVEL
-) -> pd.DataFrame:
+def composite_intervals(cell_list: list[Cell], composite: pd.DataFrame, level: float = bs.LEVEL) -> pd.DataFrame:
     """The table's CS per (scenario, model) with its bootstrap interval (NaN where undefined)."""
     weights = score_weights(cell_list, composite)
-    cs = composite.set_index(["scenario", "model"])["CS"]
+    cs = composite.set_index(["scenario", "model"])[CS]
     records = []
     for c in cell_list:
         value = cs.get((c.scenario, c.model), np.nan)
@@ -63,15 +59,13 @@ def composite_intervals(
         if c.scenario in weights and np.isfinite(value):
             reps = _seed_scores(c.replicates, weights[c.scenario])  # [B, S]
             lo, hi = bs.percentile_interval(bs.mean_over_seeds(reps[..., None])[..., 0], level)
-        records.append({"scenario": c.scenario, "model": c.model, "CS": value, "ci_low": float(lo),
+        records.append({"scenario": c.scenario, "model": c.model, CS: value, "ci_low": float(lo),
                         "ci_high": float(hi)})
-    return pd.DataFrame(records, columns=CS_COLUMNS)
+    return pd.DataFrame(records, columns=["scenario", "model", CS, "ci_low", "ci_high"])
 
 
-def aggregate_scores(
-    cell_list: list[Cell], composite: pd.DataFrame, models: list[str], level: float = bs.LEVEL,
-    n_boot: int = bs.N_BOOT,
-) -> pd.DataFrame:
+def aggregate_scores(cell_list: list[Cell], composite: pd.DataFrame, models: list[str], level: float = bs.LEVEL,
+                     n_boot: int = bs.N_BOOT) -> pd.DataFrame:
     """Per model, over the scenarios where its score is defined: mean and IQM with intervals.
 
     The intervals resample the model's seeds whole (`bootstrap.whole_seed_groups`), each drawn
@@ -119,16 +113,8 @@ def _compared(rows: pd.DataFrame, models: list[str], reference: str | None, trim
     return rows, reference or ("M0" if "M0" in models else models[0])
 
 
-def improvement(
-    rows: pd.DataFrame,
-    models: list[str],
-    *,
-    reference: str | None = None,
-    metric: str = "CR_total",
-    trim: bool = False,
-    level: float = bs.LEVEL,
-    n_boot: int = bs.N_BOOT,
-) -> pd.DataFrame:
+def improvement(rows: pd.DataFrame, models: list[str], *, reference: str | None = None, metric: str = HEADLINE,
+                trim: bool = False, level: float = bs.LEVEL, n_boot: int = bs.N_BOOT) -> pd.DataFrame:
     """Per scenario, P(reference has a lower `metric` than each other model) with an interval.
 
     The probability compares a simulation of a random seed of each model, ties counting half
@@ -139,11 +125,11 @@ def improvement(
     records = []
     for scenario in scenario_order(rows):
         sc = rows[rows["scenario"] == scenario]
-        ref = _groups(sc[sc["model"] == reference], metric)
+        ref = _seed_groups(sc[sc["model"] == reference], metric)[1]
         if not ref:
             continue
         for model in models:
-            other = _groups(sc[sc["model"] == model], metric)
+            other = _seed_groups(sc[sc["model"] == model], metric)[1]
             if model == reference or not other:
                 continue
             p = bs.probability_of_improvement(ref, other)
@@ -156,16 +142,8 @@ def improvement(
     return pd.DataFrame(records, columns=IMPROVEMENT_COLUMNS)
 
 
-def improvement_overall(
-    rows: pd.DataFrame,
-    models: list[str],
-    *,
-    reference: str | None = None,
-    metric: str = "CR_total",
-    trim: bool = False,
-    level: float = bs.LEVEL,
-    n_boot: int = bs.N_BOOT,
-) -> pd.DataFrame:
+def improvement_overall(rows: pd.DataFrame, models: list[str], *, reference: str | None = None, metric: str = HEADLINE,
+                        trim: bool = False, level: float = bs.LEVEL, n_boot: int = bs.N_BOOT) -> pd.DataFrame:
     """Per model, the probability of improvement averaged over the scenarios both models have
     (rliable's over tasks), with an interval that resamples each model's seeds whole.
 
@@ -197,9 +175,6 @@ def improvement_overall(
     return pd.DataFrame(records, columns=IMPROVEMENT_COLUMNS)
 
 
-OVERALL = "mean over scenarios"
-
-
 def _seed_groups(rows: pd.DataFrame, metric: str) -> tuple[list, list[np.ndarray]]:
     """Per seed (ascending) with a finite value, its seed and its finite values of `metric`
     as an [n, 1] array."""
@@ -214,6 +189,38 @@ def _seed_groups(rows: pd.DataFrame, metric: str) -> tuple[list, list[np.ndarray
     return seeds, out
 
 
-def _groups(rows: pd.DataFrame, metric: str) -> list[np.ndarray]:
-    """Per seed (ascending), its finite values of `metric` as an [n, 1] array."""
-    return _seed_groups(rows, metric)[1]
+
+def statistics_markdown(improvement: pd.DataFrame, aggregates: pd.DataFrame, *, trim: bool = False,
+                        digits: int = TABLE_DIGITS) -> str:
+    """Markdown of `improvement` (scenarios x models) and `aggregate_scores`."""
+    lines: list[str] = []
+    if len(improvement):
+        reference, metric = improvement["reference"].iloc[0], improvement["metric"].iloc[0]
+        others = list(dict.fromkeys(improvement["model"]))
+        cells = improvement.set_index(["scenario", "model"])
+        lines += [f"Probability that {reference} has a lower {metric} than each model [95% bootstrap interval]"
+                  + (" (collision rates trimmed)" if trim else "") + ":", "",
+                  "| Scenario | " + " | ".join(f"{reference} vs {m}" for m in others) + " |",
+                  "|---|" + "---:|" * len(others)]
+        for scenario in dict.fromkeys(improvement["scenario"]):
+            row = [interval_text(*cells.loc[(scenario, m), ["probability", "ci_low", "ci_high"]], digits)
+                   if (scenario, m) in cells.index else MISSING for m in others]
+            lines.append(f"| {scenario} | " + " | ".join(row) + " |")
+        lines += ["", "A simulation of a random seed of each model is compared; ties count half; "
+                  "0.5 means no difference, 1 that the reference always had fewer collisions. "
+                  "Per scenario, the interval resamples each model's seeds and simulations; the mean "
+                  "over scenarios resamples whole seeds (all scenarios of a seed together) with the "
+                  "percentile level widened for the number of seeds.", ""]
+    if len(aggregates):
+        stats = list(dict.fromkeys(aggregates["statistic"]))
+        cells = aggregates.set_index(["model", "statistic"])
+        lines += ["Composite score aggregated over scenarios [95% interval, whole seeds resampled]:", "",
+                  "| Model | " + " | ".join(stats) + " | scenarios | runs |", "|---|" + "---:|" * (len(stats) + 2)]
+        for model in dict.fromkeys(aggregates["model"]):
+            row = [interval_text(*cells.loc[(model, s), ["value", "ci_low", "ci_high"]], digits) for s in stats]
+            first = cells.loc[(model, stats[0])]
+            lines.append(f"| {model} | " + " | ".join(row) + f" | {int(first['n_scenarios'])} | {int(first['n_runs'])} |")
+        lines += ["", "Per-seed composite scores with each scenario's normalisers fixed (their mean over "
+                  "seeds is the table's CS); mean: over scenarios; IQM: interquartile mean of all "
+                  "(scenario, seed) scores."]
+    return "\n".join(lines) + "\n" if lines else ""

@@ -1,14 +1,22 @@
-"""Per-simulation evaluation rows -> per (scenario, model, metric) estimates with 95% intervals.
+"""Per-simulation evaluation rows -> Table I's cells: per (scenario, model, metric) estimates with
+95% intervals, and the paper's composite score per scenario.
 
 A cell's estimate is the mean over seeds of each seed's mean over simulations; its interval
 is a two-level bootstrap over seeds and their simulations (`sigmarl.stats.bootstrap`), so
 it reflects the seed-to-seed variation that pooled simulations would hide.
+
+The composite score (the paper's eq. 2) sums each composite metric (`metrics.COMPOSITE`) divided
+by its mean over the compared models, with its sign: CS_m = -CR_total,m / mean_j CR_total,j
+- CD_m / mean_j CD_j + AS_m / mean_j AS_j. Units cancel (percent or fraction, cm or paper units
+give the same score) but the score depends on which models are in the table. When a mean is
+zero the score has no meaning; we say so instead of dividing by zero.
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,24 +24,29 @@ import pandas as pd
 
 from sigmarl.ablation import MODELS
 from sigmarl.errors import SigmarlError
-from sigmarl.metrics import COLLISION_COLUMNS, METRIC_COLUMNS, UNITS, scaled
+from sigmarl.metrics import (
+    BY_NAME,
+    COLLISION_COLUMNS,
+    COMPOSITE,
+    CS,
+    HEADLINE,
+    METRIC_COLUMNS,
+    UNITS,
+    scaled,
+)
 from sigmarl.scenarios import scenario_names
 from sigmarl.stats import bootstrap as bs
 from sigmarl.stats.intervals import mean_ci
 
-SUMMARY_COLUMNS = [
-    "scenario", "model", "metric", "unit", "mean", "ci_low", "ci_high", "std", "n", "n_seeds", "seed_std",
-    "trimmed",
-]  # fmt: skip
+SUMMARY_COLUMNS = ["scenario", "model", "metric", "unit", "mean", "ci_low", "ci_high", "std", "n", "n_seeds",
+                   "seed_std", "trimmed"]
 
 
 def validate_rows(rows: pd.DataFrame | None) -> pd.DataFrame:
     """The rows with the columns the report needs; a clear error for empty or malformed input."""
     if rows is None or len(rows) == 0:
-        raise SigmarlError(
-            "no finished evaluation runs to report on (evaluate some models first, "
-            "e.g. with `sigmarl sweep` or `sigmarl evaluate`)"
-        )
+        raise SigmarlError("no finished evaluation runs to report on (evaluate some models first, "
+                           "e.g. with `sigmarl sweep` or `sigmarl evaluate`)")
     missing = [c for c in ("model", "scenario", *METRIC_COLUMNS) if c not in rows.columns]
     if missing:
         raise SigmarlError(f"evaluation rows lack the column(s) {', '.join(missing)}")
@@ -61,10 +74,7 @@ def label_order(present: list[str], known: list[str] | None = None) -> list[str]
     known = list(MODELS) if known is None else list(known)
 
     def base(label: str) -> int:
-        for i, k in enumerate(known):
-            if label == k or label.startswith(k + "_"):
-                return i
-        return len(known)
+        return next((i for i, k in enumerate(known) if label == k or label.startswith(k + "_")), len(known))
 
     def natural(label: str) -> list:
         return [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", label)]
@@ -81,12 +91,9 @@ def model_order(rows: pd.DataFrame, models: list[str] | None = None,
     if models is None:
         return label_order(present, known)
     models = [str(m) for m in models]
-    absent = [m for m in models if m not in present]
-    if absent:
-        raise SigmarlError(
-            f"no evaluation rows for model(s) {', '.join(absent)}; "
-            f"models with rows: {', '.join(_known_first(present, list(MODELS)))}"
-        )
+    if absent := [m for m in models if m not in present]:
+        raise SigmarlError(f"no evaluation rows for model(s) {', '.join(absent)}; "
+                           f"models with rows: {', '.join(_known_first(present, list(MODELS)))}")
     if len(set(models)) != len(models):
         raise SigmarlError(f"model list names a model twice: {', '.join(models)}")
     return models
@@ -101,19 +108,18 @@ def trim_collisions(rows: pd.DataFrame) -> pd.DataFrame:
     """Blank the collision rates of each evaluation's best and worst simulation.
 
     As in the paper, per (scenario, model, seed) the simulation with the lowest and the one
-    with the highest CR_total are dropped from all three collision-rate columns (the same
-    two simulations, so that CR_total stays CR_AA + CR_AL); ties go to the lower
-    simulation index. CD and AS keep every simulation. Evaluations of fewer than three
-    simulations are left whole, since trimming would leave nothing to average.
+    with the highest headline rate (`metrics.HEADLINE`, CR_total) are dropped from all the
+    collision-rate columns (the same two simulations, so that CR_total stays CR_AA + CR_AL);
+    ties go to the lower simulation index. CD and AS keep every simulation. Evaluations of
+    fewer than three simulations are left whole, since trimming would leave nothing to average.
     """
     rows = rows.copy()
     drop: list = []
     for _, g in rows.groupby(["scenario", "model", "seed"], sort=False):
-        g = g.dropna(subset=["CR_total"])
-        if len(g) < 3:
-            continue
-        ranked = g.sort_values(["CR_total", "simulation"], kind="stable").index
-        drop += [ranked[0], ranked[-1]]
+        g = g.dropna(subset=[HEADLINE])
+        if len(g) >= 3:
+            ranked = g.sort_values([HEADLINE, "simulation"], kind="stable").index
+            drop += [ranked[0], ranked[-1]]
     rows.loc[drop, list(COLLISION_COLUMNS)] = math.nan
     return rows
 
@@ -141,25 +147,18 @@ class Cell:
 def seed_groups(rows: pd.DataFrame) -> tuple[list, list[np.ndarray]]:
     """The seeds of one cell's rows (ascending) and their [n_sims, K] metric arrays."""
     ordered = rows.sort_values(["seed", "simulation"], kind="stable")
-    values = scaled(ordered).to_numpy()
+    values, keys = scaled(ordered).to_numpy(), ordered["seed"].to_numpy()
     seeds = list(dict.fromkeys(ordered["seed"]))
-    keys = ordered["seed"].to_numpy()
     return seeds, [values[keys == s] for s in seeds]
 
 
-def cells(
-    rows: pd.DataFrame,
-    models: list[str] | None = None,
-    *,
-    trim: bool = False,
-    n_boot: int = bs.N_BOOT,
-) -> list[Cell]:
+def cells(rows: pd.DataFrame, models: list[str] | None = None, *, trim: bool = False,
+          n_boot: int = bs.N_BOOT) -> list[Cell]:
     """Every (scenario, model) with rows, scenarios and models in report order."""
     rows = validate_rows(rows)
     models = model_order(rows, models)
     rows = rows[rows["model"].isin(models)]
-    if trim:
-        rows = trim_collisions(rows)
+    rows = trim_collisions(rows) if trim else rows
     out = []
     for scenario in scenario_order(rows):
         for model in models:
@@ -181,33 +180,16 @@ def summarise(cell_list: list[Cell], *, trim: bool = False, level: float = bs.LE
         for k, metric in enumerate(METRIC_COLUMNS):
             _, _, std, n = mean_ci(np.concatenate([g[:, k] for g in c.groups]), level)
             seed_means = per_seed[:, k][np.isfinite(per_seed[:, k])]
-            records.append(
-                {
-                    "scenario": c.scenario,
-                    "model": c.model,
-                    "metric": metric,
-                    "unit": UNITS[metric],
-                    "mean": float(c.point[k]),
-                    "ci_low": float(lo[k]),
-                    "ci_high": float(hi[k]),
-                    "std": std,
-                    "n": n,
-                    "n_seeds": len(seed_means),
-                    "seed_std": float(seed_means.std(ddof=1)) if len(seed_means) > 1 else math.nan,
-                    "trimmed": bool(trim and metric in COLLISION_COLUMNS),
-                }
-            )
+            records.append({
+                "scenario": c.scenario, "model": c.model, "metric": metric, "unit": UNITS[metric],
+                "mean": float(c.point[k]), "ci_low": float(lo[k]), "ci_high": float(hi[k]), "std": std, "n": n,
+                "n_seeds": len(seed_means), "seed_std": float(seed_means.std(ddof=1)) if len(seed_means) > 1 else math.nan,
+                "trimmed": bool(trim and metric in COLLISION_COLUMNS)})
     return pd.DataFrame(records, columns=SUMMARY_COLUMNS)
 
 
-def aggregate(
-    rows: pd.DataFrame,
-    models: list[str] | None = None,
-    *,
-    trim: bool = False,
-    level: float = bs.LEVEL,
-    n_boot: int = bs.N_BOOT,
-) -> pd.DataFrame:
+def aggregate(rows: pd.DataFrame, models: list[str] | None = None, *, trim: bool = False,
+              level: float = bs.LEVEL, n_boot: int = bs.N_BOOT) -> pd.DataFrame:
     """One row per (scenario, model, metric): estimate, `level` interval, std, n, seed spread.
 
     Collision rates come in as fractions of steps and go out in percent. `mean` is the mean
@@ -216,3 +198,55 @@ def aggregate(
     is the sample standard deviation of the per-seed means (NaN with one seed).
     """
     return summarise(cells(rows, models, trim=trim, n_boot=n_boot), trim=trim, level=level)
+
+
+@dataclass(frozen=True)
+class CompositeScore:
+    """Scores indexed by model (NaN where undefined) and a note explaining any gap."""
+
+    scores: pd.Series
+    note: str | None = None
+
+    @property
+    def defined(self) -> bool:
+        return bool(self.scores.notna().any())
+
+
+def composite_of(means: Mapping[str, Mapping[str, float] | pd.Series]) -> CompositeScore:
+    """Composite scores of the models in one scenario from their means of each composite
+    metric (`sigmarl.metrics.COMPOSITE`: metric -> sign), given as metric -> {model: mean}."""
+    frame = pd.DataFrame({name: pd.Series(means[name], dtype=float) for name in COMPOSITE})
+    frame.index.name = "model"
+    complete = frame.dropna()
+    nan_scores = pd.Series(math.nan, index=frame.index, name=CS)
+    notes = []
+    if len(complete) < len(frame):
+        left_out = ", ".join(map(str, frame.index.difference(complete.index, sort=False)))
+        notes.append(f"no complete metrics for {left_out}: left out of the composite score")
+    if complete.empty:
+        return CompositeScore(nan_scores, "composite score undefined: no model has all metrics")
+    if len(complete) == 1:  # each metric over its mean across one model is 1: the score says nothing
+        return CompositeScore(nan_scores, "; ".join(["one model: nothing to compare, so no composite score, "
+                                                     "probability of improvement or verdict", *notes]))
+    mean = complete.mean()
+    for name in COMPOSITE:
+        if not mean[name] > 0:
+            why = BY_NAME[name].zero_mean_note or f"composite score undefined: mean {name} is 0"
+            return CompositeScore(nan_scores, "; ".join([why, *notes]))
+    scores = None
+    for name, sign in COMPOSITE.items():  # sign x (value / mean), summed in the metrics' order
+        term = complete[name] / mean[name]
+        scores = (-term if sign < 0 else term) if scores is None else \
+            (scores - term if sign < 0 else scores + term)
+    return CompositeScore(scores.reindex(frame.index).rename(CS), "; ".join(notes) or None)
+
+
+def composite_scores(summary: pd.DataFrame) -> pd.DataFrame:
+    """Per scenario of an `aggregate` summary: columns scenario, model, CS, note."""
+    parts = []
+    for scenario, g in summary.groupby("scenario", sort=False):
+        means = g.pivot(index="model", columns="metric", values="mean").reindex(list(dict.fromkeys(g["model"])))
+        result = composite_of({name: means[name] for name in COMPOSITE})
+        parts.append(pd.DataFrame({"scenario": scenario, "model": result.scores.index,
+                                   CS: result.scores.to_numpy(), "note": result.note or ""}))
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=["scenario", "model", CS, "note"])

@@ -1,6 +1,7 @@
-"""A results folder on disk -> evaluation rows and training curves (no MLflow).
+"""What a report reads from disk (no MLflow): a results folder's evaluation rows and training
+curves, and the rows of policies trained by the paper's own code.
 
-Layout, as a sweep writes it (`runs_root=...`) and as results/paper-budget/ is committed:
+A results folder, as a sweep writes it (`runs_root=...`) and as results/paper-budget/ is committed:
 
     <root>/<model label>/seed<k>/
         config.yaml          the resolved training config
@@ -8,8 +9,11 @@ Layout, as a sweep writes it (`runs_root=...`) and as results/paper-budget/ is c
         evaluation_rows.csv  per-simulation rows (model, obs, seed, rules, scenario, simulation + the metrics)
         best.pt, final.pt    checkpoints (read only for animations)
 
-A run folder without evaluation rows (training unfinished) is skipped and named in the
-notes; without metrics.csv it just has no training curve.
+A run folder without evaluation rows (training unfinished) is skipped and named in the notes;
+without metrics.csv it just has no training curve. The paper's own policies' rows
+(`sigmarl evaluate paper:M<k>`) lie in `<label>/<rules>/evaluation_rows.csv` under the folder
+`paper-policies` beside the study's; they are read for the `paper_policies` section only, never
+pooled with a study's rows.
 """
 
 from __future__ import annotations
@@ -27,12 +31,15 @@ from sigmarl.ablation import MODELS, TIMINGS
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
 from sigmarl.params import VEHICLE
-from sigmarl.readers import read_training_curve
-from sigmarl.report.inputs.coverage import run_state
+from sigmarl.readers import read_run_config, read_training_curve
+from sigmarl.report.columns import run_state
 from sigmarl.rows import check_rows, note_protocol
 from sigmarl.run import COMPLETE_REWARD_COLUMN, REWARD_COLUMN, ROWS_FILE, Run
 
 _SEED_DIR = re.compile(r"seed(-?\d+)")
+IMPORTED_FOLDER = "paper-policies"  # beside a results folder: the paper's own policies' rows
+# the paper's speed command range: under its drag dynamics a speed may pass ours (0.8) in a transient
+PAPER_TOP_SPEED = 1.0
 
 
 @dataclass(frozen=True)
@@ -55,14 +62,9 @@ def run_folders(root: Path) -> list[RunFolder]:
     root = Path(root)
     if not root.is_dir():
         raise SigmarlError(f"results folder not found: {root}")
-    found = []
-    for model_dir in root.iterdir():
-        if not model_dir.is_dir():
-            continue
-        for seed_dir in model_dir.iterdir():
-            m = _SEED_DIR.fullmatch(seed_dir.name)
-            if m and seed_dir.is_dir():
-                found.append(RunFolder(model_dir.name, int(m.group(1)), seed_dir))
+    found = [RunFolder(model_dir.name, int(m.group(1)), seed_dir)
+             for model_dir in root.iterdir() if model_dir.is_dir()
+             for seed_dir in model_dir.iterdir() if (m := _SEED_DIR.fullmatch(seed_dir.name)) and seed_dir.is_dir()]
     order = {name: i for i, name in enumerate(MODELS)}
     found.sort(key=lambda r: (order.get(r.label, len(order)), r.label, r.seed))
     if not found:
@@ -101,12 +103,8 @@ def _top_speed(run: RunFolder) -> float:
     """The run's vehicle's top speed (env.vehicle.max_speed in its config.yaml; the default
     where the file is absent or unreadable, as for runs from before the key)."""
     path = Run(run.path).config_file
-    if not path.is_file():
-        return VEHICLE.max_speed
-    from sigmarl.readers import read_run_config
-
     try:
-        return float(read_run_config(path).env.vehicle.max_speed)
+        return float(read_run_config(path).env.vehicle.max_speed) if path.is_file() else VEHICLE.max_speed
     except SigmarlError:
         return VEHICLE.max_speed
 
@@ -131,15 +129,34 @@ def _curve_of(run: RunFolder, model: str) -> tuple[pd.DataFrame | None, str | No
     return curve, None
 
 
-def _rules_of(run: RunFolder) -> int | None:
-    """The environment rules its rows were measured under (evaluation.json: `rules`, absent
-    before revision 2), or None where the folder does not say (a folder without the file)."""
+def _note(run: RunFolder) -> dict | None:
+    """The rows' note (evaluation.json); None where it is absent or unreadable."""
     try:
         meta = json.loads(Run(run.path).rows_meta_file.read_text())
     except (OSError, ValueError):
         return None
-    rules = meta.get("rules", 1) if isinstance(meta, dict) else None
+    return meta if isinstance(meta, dict) else None
+
+
+def _rules_of(run: RunFolder) -> int | None:
+    """The environment rules its rows were measured under (the note's `rules`, absent before
+    revision 2), or None where the folder does not say (a folder without the note)."""
+    if (meta := _note(run)) is None:
+        return None
+    rules = meta.get("rules", 1)
     return rules if isinstance(rules, int) and not isinstance(rules, bool) else None
+
+
+def _recorded_sha256(run: RunFolder) -> str | None:
+    """The rows' SHA-256 their note records (`rows_sha256`), None where it records none."""
+    found = (_note(run) or {}).get("rows_sha256")
+    return found if isinstance(found, str) else None
+
+
+def _eval_key_of(run: RunFolder) -> str | None:
+    """The protocol (`eval_key.protocol_key`) its rows' note names; None where none says."""
+    meta = _note(run)
+    return note_protocol(meta) if meta is not None else None
 
 
 def read_results(root: Path, partial: bool = False) -> FolderResults:
@@ -149,7 +166,10 @@ def read_results(root: Path, partial: bool = False) -> FolderResults:
     one line naming it (left out, with a note, when `partial`)."""
     runs = run_folders(root)
     frames, curves, notes = [], [], []
-    study = _study_protocol(runs)
+    keys = Counter(k for run in runs if Run(run.path).rows_file.is_file() and (k := _eval_key_of(run)))
+    # the protocol most of the folder's rows were evaluated under: its study's (a sweep writes
+    # every seed's rows under one; an evaluation under another is written beside them)
+    study = keys.most_common(1)[0][0] if keys else None
     seen: dict[tuple[str, int], Path] = {}
     sims: dict[str | None, tuple[int, Path]] = {}  # per evaluation protocol: simulations per scenario
     unhashed = 0  # rows files whose note predates their SHA-256: checked by their contents only
@@ -161,26 +181,22 @@ def read_results(root: Path, partial: bool = False) -> FolderResults:
         rows = rows_of(run)
         _same_protocol_count(rows, run, sims)
         model = str(rows["model"].iloc[0])
-        key = (model, run.seed)
-        if key in seen:
-            raise SigmarlError(f"{model} seed {run.seed} is in both {seen[key]} and {run.path}")
-        seen[key] = run.path
+        if (model, run.seed) in seen:
+            raise SigmarlError(f"{model} seed {run.seed} is in both {seen[(model, run.seed)]} and {run.path}")
+        seen[(model, run.seed)] = run.path
         frames.append(rows)
         curve, note = _curve_of(run, model)
-        if curve is not None:
-            curves.append(curve)
-        if note:
-            notes.append(note)
+        curves += [curve] if curve is not None else []
+        notes += [note] if note else []
     if unhashed:
         notes.append(f"{unhashed} rows file(s) under {root} have no SHA-256 in their note (written before it was "
                      "recorded): taken after checking their contents")
     if not frames:
         raise SigmarlError(f"no {ROWS_FILE} under {root}: nothing evaluated to report on"
                            + "".join(f"; {n}" for n in notes))
-    rows = pd.concat(frames, ignore_index=True)
     curve_frame = (pd.concat(curves, ignore_index=True) if curves
                    else pd.DataFrame(columns=["model", "seed", "iteration", "reward", "seconds"]))
-    return FolderResults(rows, curve_frame, runs, notes)
+    return FolderResults(pd.concat(frames, ignore_index=True), curve_frame, runs, notes)
 
 
 def _left_out(run: RunFolder, study: str | None, partial: bool) -> str | None:
@@ -204,16 +220,6 @@ def _left_out(run: RunFolder, study: str | None, partial: bool) -> str | None:
     return None
 
 
-def _recorded_sha256(run: RunFolder) -> str | None:
-    """The rows' SHA-256 their note records (`rows_sha256`), None where it records none."""
-    try:
-        meta = json.loads(Run(run.path).rows_meta_file.read_text())
-    except (OSError, ValueError):
-        return None
-    found = meta.get("rows_sha256") if isinstance(meta, dict) else None
-    return found if isinstance(found, str) else None
-
-
 def _same_protocol_count(rows: pd.DataFrame, run: RunFolder, sims: dict) -> None:
     """Runs evaluated under one protocol hold the same number of simulations per scenario."""
     if "simulation" not in rows.columns or not len(rows):
@@ -226,30 +232,13 @@ def _same_protocol_count(rows: pd.DataFrame, run: RunFolder, sims: dict) -> None
                            "(delete its evaluation_rows.csv and sweep again)")
 
 
-def _eval_key_of(run: RunFolder) -> str | None:
-    """The protocol (`eval_key.protocol_key`) its rows' note names; None where none says."""
-    try:
-        meta = json.loads(Run(run.path).rows_meta_file.read_text())
-    except (OSError, ValueError):
-        return None
-    return note_protocol(meta) if isinstance(meta, dict) else None
-
-
-def _study_protocol(runs: list[RunFolder]) -> str | None:
-    """The protocol most of the folder's rows were evaluated under: its study's (a sweep writes
-    every seed's rows under one; an evaluation under another is written beside them)."""
-    keys = Counter(k for run in runs if Run(run.path).rows_file.is_file() and (k := _eval_key_of(run)))
-    return keys.most_common(1)[0][0] if keys else None
-
-
 def read_many(roots: list[Path], partial: bool = False) -> FolderResults:
     """`read_results` of several folders as one; a label and seed found twice is refused."""
     parts = [read_results(r, partial) for r in roots]
     rows = pd.concat([p.rows for p in parts], ignore_index=True)
-    seen = rows.drop_duplicates(["model", "seed", "scenario", "simulation"])
-    if len(seen) < len(rows):
-        twice = rows[rows.duplicated(["model", "seed", "scenario", "simulation"])].iloc[0]
-        raise SigmarlError(f"{twice['model']} seed {twice['seed']} is in more than one of "
+    twice = rows[rows.duplicated(["model", "seed", "scenario", "simulation"])]
+    if len(twice):
+        raise SigmarlError(f"{twice['model'].iloc[0]} seed {twice['seed'].iloc[0]} is in more than one of "
                            f"{', '.join(map(str, roots))}")
     curves = [p.curves for p in parts if len(p.curves)]
     return FolderResults(rows, pd.concat(curves, ignore_index=True) if curves else parts[0].curves,
@@ -264,3 +253,23 @@ def checkpoint_of(runs: list[RunFolder], model: str, name: str) -> Path | None:
             if str(rows_of(run)["model"].iloc[0]) == model:
                 return folder.path(name)
     return None
+
+
+def imported_folder_beside(root: Path) -> Path | None:
+    """`<parent of root>/paper-policies`, where it exists."""
+    folder = Path(root).resolve().parent / IMPORTED_FOLDER
+    return folder if folder.is_dir() else None
+
+
+def read_imported(folder: Path) -> pd.DataFrame:
+    """Every `<label>/<rules>/evaluation_rows.csv` under `folder`, checked, marked imported
+    (`source`), in one frame (empty where there are none)."""
+    frames = []
+    for path in sorted(Path(folder).glob(f"*/*/{ROWS_FILE}")):
+        rows = _read_csv(path)
+        missing = [c for c in ("model", "obs", "seed", "rules", "source") if c not in rows.columns]
+        if missing:
+            raise SigmarlError(f"{path}: rows of an imported policy lack the column(s) {', '.join(missing)}")
+        paper = set(rows["rules"].astype(str)) == {"paper"}
+        frames.append(check_rows(rows, path, PAPER_TOP_SPEED if paper else VEHICLE.max_speed))
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
