@@ -132,12 +132,6 @@ def run_state(path: Path) -> tuple[str, bool]:
     return "not evaluated yet, training never started", False
 
 
-def belongs(label: str, variants: Iterable[str]) -> bool:
-    """A label of the study: one of its variants (one a command-line sweep derived from it,
-    M0_hidden-64-64, is its sweep's own)."""
-    return label in set(variants)
-
-
 def left_out(variants: Sequence[str], reported: set[tuple[str, int]],
              folders: Iterable[tuple[str, int, Path]], where: str, declared: bool = True) -> list[LeftOut]:
     """The study's runs not in the report: each run folder (label, seed, path) of one of
@@ -145,7 +139,7 @@ def left_out(variants: Sequence[str], reported: set[tuple[str, int]],
     variant that has neither rows nor a run folder (`where`: where its folders were looked for)."""
     out, seen = [], set()
     for label, seed, path in folders:
-        if not belongs(label, variants):
+        if label not in variants:  # a label a command-line sweep derived (M0_hidden-64-64) is its own
             continue
         seen.add(label)
         if (label, seed) not in reported:
@@ -153,7 +147,7 @@ def left_out(variants: Sequence[str], reported: set[tuple[str, int]],
             out.append(LeftOut(label, seed, why, failed))
     if declared:
         have = {label for label, _ in reported} | seen
-        never = [v for v in variants if not any(belongs(label, [v]) for label in have)]
+        never = [v for v in variants if v not in have]
         if never:
             out.append(LeftOut(", ".join(never), None, f"not run (no rows, no run folder in {where})"))
     return out
@@ -165,7 +159,7 @@ def check(declared: Sequence[str], reported: set[tuple[str, int]], missing: list
     failed, or a declared variant has run folders but no rows (unfinished, not evaluated). A
     variant never run (no folder, no rows: e.g. `sweep models=[...]` picked others) is a note."""
     started = {m.label for m in missing if m.seed is not None}
-    rowless = [v for v in declared if v in started and not any(belongs(label, [v]) for label, _ in reported)]
+    rowless = [v for v in declared if v in started and v not in {label for label, _ in reported}]
     failed = [m for m in missing if m.failed]
     if (rowless or failed) and not partial:
         what = []

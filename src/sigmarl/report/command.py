@@ -17,17 +17,9 @@ from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import protocol_key
 from sigmarl.readers import read_run_config
-from sigmarl.report import inputs
+from sigmarl.report import columns, inputs
 from sigmarl.report.build import BuildOptions, Report, build_report
 from sigmarl.report.cells import label_order
-from sigmarl.report.columns import (
-    belongs,
-    check,
-    check_columns,
-    left_out,
-    one_config_per_run,
-    variant_configs,
-)
 from sigmarl.report.compare.verdicts import design_of
 from sigmarl.report.study import run_records
 from sigmarl.run import Run
@@ -78,13 +70,14 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     try:
         rows = records.load_evaluation_rows(client, experiment, _study_protocol(cfg, options), lacking)
     except SigmarlError as e:  # no rows at all: say what became of the study's runs
-        missing = left_out(list(cfg.study.variants), set(), folders, where, declared=False)
+        missing = columns.left_out(list(cfg.study.variants), set(), folders, where, declared=False)
         raise SigmarlError(f"{e}; " + "; ".join(map(str, missing)) if missing else str(e)) from e
     rows = only_scenarios(rows, options.scenarios, experiment)
     _refuse_other_labels(rows, cfg, options)
-    expected = variant_configs(options.overrides, dict(cfg.study.variants), rows["model"].astype(str))
-    rows, wrong = check_columns(rows, expected, options.partial, lambda rid: records.evaluated_config(client, rid))
-    rows = one_config_per_run(rows, list(expected))
+    expected = columns.variant_configs(options.overrides, dict(cfg.study.variants), rows["model"].astype(str))
+    rows, wrong = columns.check_columns(rows, expected, options.partial,
+                                        lambda rid: records.evaluated_config(client, rid))
+    rows = columns.one_config_per_run(rows, list(expected))
     notes = [*wrong, *lacking, *_coverage(rows, cfg, options, folders, where)]
     curves = records.load_training_curves(client, experiment) if options.figures else None
     out_dir = out_dir or report_folder(experiment, cfg, options)
@@ -260,11 +253,11 @@ def _coverage(rows, cfg: Config, options: ReportOptions, folders, where: str, ru
     the study's variants where the rows hold any of them, else against every label present."""
     present = list(dict.fromkeys(rows["model"].astype(str)))
     declared = options.models or list(cfg.study.variants)
-    claimed = any(belongs(m, declared) for m in present)
+    claimed = any(m in declared for m in present)
     variants = declared if claimed else list(dict.fromkeys([*present, *(label for label, _, _ in folders)]))
     reported = set(zip(rows["model"].astype(str), rows["seed"].astype(int), strict=True))
-    missing = left_out(variants, reported, folders, where, declared=claimed)
-    check(declared if claimed else [], reported, missing, cfg.study.name, options.partial)
+    missing = columns.left_out(variants, reported, folders, where, declared=claimed)
+    columns.check(declared if claimed else [], reported, missing, cfg.study.name, options.partial)
     return [f"Left out: {m}." for m in missing if not runs_noted or m.seed is None]
 
 

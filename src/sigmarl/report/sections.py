@@ -12,6 +12,7 @@ from dataclasses import asdict
 import pandas as pd
 
 from sigmarl.metrics import BENCHMARK, CS, HEADLINE, in_table
+from sigmarl.report import scores, tables
 from sigmarl.report.cells import cells, composite_scores, scenario_order, summarise, trim_collisions
 from sigmarl.report.compare.curve_verdicts import (
     curve_verdicts_markdown,
@@ -25,28 +26,9 @@ from sigmarl.report.compare.replication import replication_markdown, replication
 from sigmarl.report.compare.verdicts import verdict_table, verdicts_markdown
 from sigmarl.report.draft import Draft, Section
 from sigmarl.report.marl_eval import export_files, interval_data
-from sigmarl.report.scores import (
-    aggregate_scores,
-    composite_intervals,
-    improvement,
-    improvement_overall,
-    statistics_markdown,
-)
 from sigmarl.report.seeds.next_seed import next_seed_markdown, prediction_table, slow_seed_table
 from sigmarl.report.seeds.per_seed import seed_table, seeds_markdown
 from sigmarl.report.study import caption, provenance_markdown, reward_differs, study_markdown
-from sigmarl.report.tables import (
-    benchmark_estimates,
-    benchmark_markdown,
-    build_table,
-    matrix_markdown,
-    paper_curves,
-    paper_values,
-    table_notes,
-    to_csv_frame,
-    to_latex,
-    to_markdown,
-)
 from sigmarl.report.training import paper_last_rewards, training_markdown, training_summary
 
 # in table.md, between what the columns are and the table itself
@@ -69,23 +51,23 @@ def table_section(d: Draft) -> None:
     d.cells = cells(d.rows, d.models, trim=o.trim)
     d.summary = summarise(d.cells, trim=o.trim)
     composite = composite_scores(d.summary)
-    intervals = composite_intervals(d.cells, composite)
+    intervals = scores.composite_intervals(d.cells, composite)
     d.composite = composite.merge(intervals.drop(columns=CS), on=["scenario", "model"], how="left")
-    paper = paper_values(d.models) if o.compare_paper else None
+    paper = tables.paper_values(d.models) if o.compare_paper else None
     measured = set(paper.index.get_level_values("scenario")) if paper is not None else set()
-    d.notes = table_notes(d.summary, d.composite, d.models, trim=o.trim, compare_paper=o.compare_paper, ci=o.ci,
+    d.notes = tables.table_notes(d.summary, d.composite, d.models, trim=o.trim, compare_paper=o.compare_paper, ci=o.ci,
                      paper_scenarios=measured) + list(o.extra_notes)
-    d.table = build_table(d.summary, d.composite, d.models, paper, d.notes)
-    d.markdown = to_markdown(d.table, ci=o.ci)
+    d.table = tables.build_table(d.summary, d.composite, d.models, paper, d.notes)
+    d.markdown = tables.to_markdown(d.table, ci=o.ci)
     if o.configs is not None and o.defaults is not None:  # the study page's header: what the columns are
         d.markdown = study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit,
                                     title="What this table compares", with_commit=False) \
             + f"\n{TABLE_HEADING}\n\n" + d.markdown
     d.write("markdown", "table.md", d.markdown)
-    d.write("csv", "table.csv", to_csv_frame(d.table))
+    d.write("csv", "table.csv", tables.to_csv_frame(d.table))
     d.write("summary", "summary.csv", d.summary)
     d.write("composite", "composite_scores.csv", d.composite)
-    d.write("matrix", "matrix.md", matrix_markdown(d.table, d.baseline or ("M0" if "M0" in d.models else None)))
+    d.write("matrix", "matrix.md", tables.matrix_markdown(d.table, d.baseline or ("M0" if "M0" in d.models else None)))
 
 
 def statistics_section(d: Draft) -> None:
@@ -93,11 +75,11 @@ def statistics_section(d: Draft) -> None:
     nothing to compare)."""
     if len(d.models) < 2:
         return
-    d.improvement = improvement(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
-    overall = improvement_overall(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
-    d.aggregates = aggregate_scores(d.cells, d.composite, d.models)
+    d.improvement = scores.improvement(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
+    overall = scores.improvement_overall(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
+    d.aggregates = scores.aggregate_scores(d.cells, d.composite, d.models)
     both = pd.concat([d.improvement, overall], ignore_index=True) if len(overall) else d.improvement
-    d.statistics = statistics_markdown(both, d.aggregates, trim=d.options.trim)
+    d.statistics = scores.statistics_markdown(both, d.aggregates, trim=d.options.trim)
     d.write("improvement", "improvement.csv", d.improvement)
     d.write("improvement_overall", "improvement_overall.csv", overall)
     d.write("aggregates", "aggregate_scores.csv", d.aggregates)
@@ -132,8 +114,8 @@ def benchmark_section(d: Draft) -> None:
     names = [m.name for m in in_table(BENCHMARK)]
     if not any(n in d.rows.columns and d.rows[n].notna().any() for n in names):
         return  # no row measured them: the report of rows from before them is what it was
-    estimates = benchmark_estimates(d.rows, d.models)
-    d.write("benchmark_md", "benchmark.md", benchmark_markdown(estimates))
+    estimates = tables.benchmark_estimates(d.rows, d.models)
+    d.write("benchmark_md", "benchmark.md", tables.benchmark_markdown(estimates))
     d.write("benchmark_csv", "benchmark.csv", estimates)
 
 
@@ -149,7 +131,7 @@ def training_section(d: Draft) -> None:
     if d.curves is None:
         return
     d.training = training_summary(d.curves, d.models)
-    last = paper_last_rewards(paper_curves()) if d.options.compare_paper else None
+    last = paper_last_rewards(tables.paper_curves()) if d.options.compare_paper else None
     d.write("training", "training.csv", d.training)
     text = training_markdown(d.training, last)
     configs = [d.options.configs[m] for m in d.models if m in (d.options.configs or {})]
@@ -198,7 +180,7 @@ def latex_section(d: Draft) -> None:
     text = "Evaluation of the models in the test scenarios (best per row in bold)."
     if o.configs is not None and o.defaults is not None:
         text += " " + caption(o.configs, d.rows, d.models, d.baseline, o.defaults)
-    d.write("latex", "table.tex", to_latex(d.table, ci=o.ci, caption=text))
+    d.write("latex", "table.tex", tables.to_latex(d.table, ci=o.ci, caption=text))
 
 
 def marl_eval_section(d: Draft) -> None:
@@ -228,11 +210,11 @@ def figures_section(d: Draft) -> None:
     plot_distributions(chosen, models, scenarios, d.file("distributions", "distributions.png"))
     if d.curves is not None:
         plot_training_curves(d.curves, d.file("training_curves", "training_curves.png"), models,
-                             paper=paper_curves() if d.options.compare_paper else None)
+                             paper=tables.paper_curves() if d.options.compare_paper else None)
         plot_training_band(d.curves, d.file("training_band", "training_band.png"), models)
         if d.options.compare_paper:
             own = [m for m in models if d.paper_models[m] == m]
-            if plot_paper_band(d.curves, paper_curves(), own, d.file("paper_band", "paper_band.png")) is None:
+            if plot_paper_band(d.curves, tables.paper_curves(), own, d.file("paper_band", "paper_band.png")) is None:
                 del d.paths["paper_band"]
     if len(scenarios) > 1 and len(models) > 1:
         plot_heatmap(d.summary, models, scenarios, d.file("heatmap", "heatmap.png"))
@@ -294,7 +276,7 @@ def curve_verdicts_section(d: Draft) -> None:
     separation = separation_table(d.curves, design) if design.baseline in d.models else None
     seeds = None
     if d.options.compare_paper:
-        seeds = paper_seed_table(d.training, paper_last_rewards(paper_curves()), d.paper_models)
+        seeds = paper_seed_table(d.training, paper_last_rewards(tables.paper_curves()), d.paper_models)
     text = curve_verdicts_markdown(*(x if x is not None else pd.DataFrame() for x in (separation, seeds)), design)
     if not text:
         return
