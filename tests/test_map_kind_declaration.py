@@ -2,7 +2,8 @@
 crossing whose arms' length is its own key, is added to a copy of the package by appending its
 record to config/map.py and its builder to maps/builders.py, and nothing else. In that copy the
 config key, its range and help line, the `kind` choice, the map's loading, its training run's
-params and the fingerprint follow it, while every committed run keeps its fingerprint."""
+params and the fingerprint follow it, while every committed run keeps its fingerprint and
+every committed row file its evaluation key."""
 
 from __future__ import annotations
 
@@ -81,6 +82,16 @@ for rows in sorted(Path({root!r}).glob("results/*/*/seed*/evaluation_rows.csv"))
     assert run.map.plus_arm == 0.9
     assert set(pd.read_csv(rows, usecols=["fingerprint"], dtype=str)["fingerprint"]) == {{fingerprint(run)}}, rows
     recorded += 1
+# and every committed row file's evaluation key: its study's protocol, else its run's, as recorded
+import json
+from sigmarl.eval_key import eval_key
+studies = {{(Path({root!r}) / c.runs_root).resolve(): eval_key(c.eval) for c in
+           (compose_config([f"study={{s.stem}}"]) for s in sorted(Path({root!r}, "conf", "study").glob("*.yaml")))}}
+for rows in sorted(Path({root!r}, "results").rglob("evaluation_rows.csv")):
+    config = rows.parent / "config.yaml"
+    now = studies.get(rows.parents[2].resolve()) or (
+        eval_key(read_run_config(config).eval) if config.is_file() else eval_key(compose_config([]).eval))
+    assert now == json.loads((rows.parent / "evaluation.json").read_text())["eval_key"], rows
 print("toy map kind followed", recorded)
 '''
 

@@ -19,8 +19,17 @@ from __future__ import annotations
 
 import torch
 
+from sigmarl.metrics import (
+    CAA_100M,
+    CAL_100M,
+    CLEAR_STEPS,
+    CONTACT_STEPS,
+    LV_100M,
+    MIN_DISTANCE_M,
+    PER_M,
+    TS,
+)
 from sigmarl.params import DT
-from sigmarl.metrics import CAA_100M, CAL_100M, CLEAR_STEPS, CONTACT_STEPS, LV_100M, MIN_DISTANCE_M, PER_M, TS
 
 
 class Hysteresis:

@@ -18,10 +18,10 @@ from sigmarl.ablation import obs_strategies
 from sigmarl.compose.validate import check_eval
 from sigmarl.config import Config, EvalConfig, as_dict
 from sigmarl.env.paper_rules import rules_label
+from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION, eval_key, protocol, protocol_key
 from sigmarl.evaluation.rollout import evaluate_policy
 from sigmarl.evaluation.target import checkpoint_name, resolve_checkpoint  # noqa: F401 (their old home)
-from sigmarl.errors import SigmarlError
 from sigmarl.identity import fingerprint
 from sigmarl.metrics import MEASURED, measured
 from sigmarl.paths import ensure_writable
