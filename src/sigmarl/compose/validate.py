@@ -54,7 +54,7 @@ def check(cfg: Config) -> Config:
     """`cfg` if every value is usable; otherwise one SigmarlError naming the key."""
     check_finite(cfg)
     check_ranges(cfg)  # each key's own range, declared on its field (`sigmarl.config.ranges`)
-    check_map(cfg.map)
+    kind_of(cfg.map)  # the keys its kind of map needs (the ranges are checked above)
     obs = cfg.obs
     if obs.n_ref_points * obs.ref_point_stride > MAX_REF_REACH:
         raise SigmarlError(
