@@ -1,4 +1,4 @@
-"""Training curves compared (`report.compare.curve_verdicts`): window means, the comparison engine per window against the
+"""Training curves compared (`report.compare.curves`): window means, the comparison engine per window against the
 baseline with Holm's correction, where the curves part, and the paper's one seed against our
 prediction interval; checked on hand-worked numbers, scipy and a results folder."""
 
@@ -15,7 +15,7 @@ from scipy import stats
 
 from sigmarl.ablation import flags_of, paper_model
 from sigmarl.cli import main
-from sigmarl.report.compare.curve_verdicts import (
+from sigmarl.report.compare.curves import (
     curve_verdicts_markdown,
     paper_seed_table,
     parting,
@@ -64,7 +64,7 @@ def test_separation_is_the_engine_per_window_against_the_baseline_with_holm():
 
 def test_parting_is_the_first_window_of_the_last_unbroken_decided_run():
     def table(verdicts):
-        return pd.DataFrame({"variant": "M4", "baseline": "M0", "first": [1 + 25 * i for i in range(len(verdicts))],
+        return pd.DataFrame({"model": "M4", "baseline": "M0", "first": [1 + 25 * i for i in range(len(verdicts))],
                              "verdict": verdicts})
 
     assert parting(table(["undecided", "lower", "undecided", "lower", "lower"])) == {("M4", "M0"): (76, "lower")}
@@ -131,8 +131,9 @@ def test_a_folder_report_writes_when_the_curves_part(tmp_path):
     assert separation["difference"].to_numpy() == pytest.approx([-1.0, -1.0], abs=0.02)
     text = (out / "curve_verdicts.md").read_text()
     # two seeds a side: the engine's pooled world has 6 splits, so no p goes under 2/6 and the
-    # curves, one apart throughout, cannot be said to part (Welch's t on two seeds did say so)
-    assert "| M4 | M0 | undecided |" in text and (separation["p_difference"] >= 1 / 3 - 0.002).all()
+    # curves, one apart throughout, cannot be said to part (Welch's t on two seeds did say so); a p
+    # that far above 0.05 is drawn to a Monte Carlo error of at most 0.0023
+    assert "| M4 | M0 | undecided |" in text and (separation["p_difference"] >= 1 / 3 - 4 * 0.0023).all()
     seeds = pd.read_csv(out / "paper_seeds.csv").set_index("variant")
     assert seeds.loc["M4", "paper"] == pytest.approx(4.33, abs=0.01) and seeds.loc["M4", "seeds"] == 2
     assert seeds.loc["M4", "reward"] == "complete" and seeds.loc["M0", "reward"] == "batch-cut"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from sigmarl.report.compare.findings import findings_markdown
+from sigmarl.report.compare.verdicts import findings_markdown
 
 
 def _summary() -> pd.DataFrame:
@@ -17,8 +17,8 @@ def _summary() -> pd.DataFrame:
 
 
 def test_findings_name_the_baselines_worst_scenario_and_each_verdict() -> None:
-    verdicts = pd.DataFrame({"scenario": ["S1", "S2"], "metric": "CR_total", "variant": "V", "baseline": "B",
-                             "n_variant": 3, "n_baseline": 5, "verdict": ["worse", "undecided"]})
+    verdicts = pd.DataFrame({"scenario": ["S1", "S2"], "metric": "CR_total", "model": "V", "baseline": "B",
+                             "seeds": "3/5", "verdict": ["worse", "undecided"]})
     text = findings_markdown(_summary(), verdicts, ["B", "V"], "B", alpha=0.05)
     assert text.startswith("Seeds per model: B 5, V 3. B's total collision rate is at most 0.90 % on each "
                            "of the 2 scenarios (worst: S2, best: S1 at 0.20 %), at an average speed of "
@@ -28,7 +28,7 @@ def test_findings_name_the_baselines_worst_scenario_and_each_verdict() -> None:
 
 
 def test_agreeing_verdicts_say_every_scenario_and_no_baseline_says_no_baseline_sentence() -> None:
-    verdicts = pd.DataFrame({"scenario": ["S1", "S2"], "metric": "CR_total", "variant": "V", "baseline": "B",
-                             "n_variant": 3, "n_baseline": 5, "verdict": "undecided"})
+    verdicts = pd.DataFrame({"scenario": ["S1", "S2"], "metric": "CR_total", "model": "V", "baseline": "B",
+                             "seeds": "3/5", "verdict": "undecided"})
     assert "undecided on every scenario." in findings_markdown(_summary(), verdicts, ["B", "V"], "B")
     assert findings_markdown(_summary(), None, ["B", "V"], None) == "Seeds per model: B 5, V 3.\n"

@@ -11,8 +11,7 @@ from scipy import stats
 
 from sigmarl.compose import compose_config
 from sigmarl.errors import SigmarlError
-from sigmarl.report.compare.interactions import interaction_table, interactions_markdown
-from sigmarl.report.compare.verdicts import Design
+from sigmarl.report.compare.verdicts import Design, interaction_table, interactions_markdown
 from sigmarl.stats.engine import Null, interaction
 
 # seed means in %: one simulation per seed, so a seed's mean is its value
@@ -38,11 +37,12 @@ def test_difference_of_differences_by_hand():
     assert direct.se == pytest.approx(math.sqrt(5 / 6))
     assert (r["ci_low"], r["ci_high"]) == (direct.ci_low, direct.ci_high) and r["ci_low"] < 1.5 < r["ci_high"]
     assert r["p_difference"] == direct.p["zero"]
-    assert r["p_equivalence"] == max(direct.p["above"], direct.p["below"])
+    assert r["p_same_holm"] == max(direct.p["above"], direct.p["below"])  # a family of one: Holm's p is the raw one
     # at least the t distribution's p on Satterthwaite's 100/17 degrees of freedom (0.15): three seeds cannot tell
     assert r["p_difference"] > 2 * stats.t.sf(1.5 / math.sqrt(5 / 6), 100 / 17) - 0.02
     assert r["verdict"] == "undecided"
-    assert (r["x"], r["x_baseline"], r["y"], r["y_baseline"]) == ("M4-paper", "M0-paper", "M4", "M0")
+    text = interactions_markdown(interaction_table(_rows(SEEDS), DESIGN), DESIGN)
+    assert "| M4-paper − M0-paper: +2.000 | M4 − M0: +0.500 |" in text
 
 
 def test_a_clear_interaction_differs_and_a_null_one_is_the_same():

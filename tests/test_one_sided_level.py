@@ -1,4 +1,4 @@
-"""The replication verdicts' one-sided permutation tests (`sigmarl.stats.one_sided`): their level,
+"""The replication verdicts' one-sided permutation tests (tests/permutation_reference.py): their level,
 simulated with fixed seeds at the seed counts of the committed study (5, 6 and 14 a model).
 
 - Under nulls whose two sides' seeds come from one distribution (lognormal, a slow-seed mixture,
@@ -18,9 +18,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from permutation_reference import greater_p, less_p
 from test_permutation_level import committed_seed_means, draw
-
-from sigmarl.stats.one_sided import greater_p, less_p
 
 ALPHA = 0.05
 REPS = 1200

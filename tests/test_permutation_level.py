@@ -1,6 +1,7 @@
 """The permutation verdicts' level and power, simulated on skewed seed distributions whose truth is set.
 
-The verdicts' difference test (`sigmarl.stats.permutation`) promises its level whenever the two
+The permutation difference test (tests/permutation_reference.py; it decided the verdicts before the
+comparison engine) promises its level whenever the two
 models' seed means are exchangeable under no difference: drawn from one distribution, whatever
 its shape. Here the seeds of both sides come from one distribution:
 
@@ -31,17 +32,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from permutation_reference import permutation_p, permutation_test
 from scipy import stats
 
 from sigmarl.report.compare.verdicts import decide, seed_values
-from sigmarl.stats.permutation import permutation_p, permutation_test
-from sigmarl.stats.sequential import (
+from sigmarl.report.seeds.plan import (
     first_decidable_look,
     nominal_levels,
     sequential_decide,
     smallest_permutation_p,
 )
-from sigmarl.stats.tests import welch
+from sigmarl.stats.engine import welch
 
 ALPHA = 0.05
 SCENARIOS, VARIANTS = 4, 5

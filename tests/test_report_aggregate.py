@@ -9,7 +9,7 @@ import pytest
 
 from sigmarl.errors import SigmarlError
 from sigmarl.report.cells import aggregate
-from sigmarl.stats.intervals import mean_ci, t_critical
+from sigmarl.stats.bootstrap import mean_ci, t_critical
 
 T_975_DF2 = 4.302653  # Student t, 97.5% quantile, 2 degrees of freedom (printed tables)
 

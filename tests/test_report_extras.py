@@ -13,7 +13,7 @@ from scipy import stats
 
 from sigmarl.cli import main
 from sigmarl.report.marl_eval import interval_data, marl_eval_data
-from sigmarl.stats.profiles import profile, profile_replicates, seed_band
+from sigmarl.stats.bootstrap import profile, profile_replicates, seed_band
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 

@@ -58,6 +58,24 @@ def test_table_holds_seed_level_means_of_the_folder(tmp_path):
     assert "| Scenario | M0 vs M4 |" in stats and "| M4 |" in stats
 
 
+def test_one_seed_a_model_decides_nothing_and_shows_no_interval(tmp_path):
+    """The quick study's shape (one seed a model): every comparison and every claim of the paper
+    undecided, and no interval where one seed leaves nothing to resample."""
+    source = tmp_path / "results"
+    shutil.copytree(FIXTURE, source)
+    for seed in source.glob("*/seed1"):
+        shutil.rmtree(seed)
+    assert report(tmp_path, "out", "--no-figures", "--compare-paper", source=source) == 0
+    out = tmp_path / "out"
+    stats = (out / "statistics.md").read_text()
+    assert "[–]" in stats and "[1.00, 1.00]" not in stats
+    assert set(pd.read_csv(out / "verdicts.csv")["verdict"]) == {"undecided"}
+    assert pd.read_csv(out / "verdicts.csv")["ci_low"].isna().all()
+    claims = pd.read_csv(out / "replication.csv")
+    assert len(claims) and set(claims["verdict"]) <= {"undecided", "struck out by the paper"}
+    assert (claims["verdict"] == "undecided").any()
+
+
 @pytest.mark.slow
 def test_figures_with_and_without_training_metrics(tmp_path):
     source = tmp_path / "results"

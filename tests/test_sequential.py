@@ -15,14 +15,14 @@ import pandas as pd
 import pytest
 
 from sigmarl.report.compare.verdicts import Design, decide
-from sigmarl.report.seeds.rounds import next_round
-from sigmarl.stats.sequential import (
+from sigmarl.report.seeds.plan import (
     boundaries,
+    next_round,
     nominal_levels,
     obrien_fleming_spending,
     sequential_decide,
 )
-from sigmarl.stats.tests import welch
+from sigmarl.stats.engine import welch
 
 N_START, MAX_SEEDS, ALPHA = 3, 10, 0.05
 SIMS, STEPS = 32, 1200

@@ -53,7 +53,7 @@ def test_the_report_compares_with_the_declared_baseline(tmp_path, conf):
                  "tracking.enabled=false"]) == 0
     assert next(ln for ln in (out / "table.md").read_text().splitlines() if ln.startswith("| Scenario")) == "| Scenario | Metric | A | B |"
     verdicts = pd.read_csv(out / "verdicts.csv")
-    assert set(verdicts["variant"]) == {"A"} and set(verdicts["baseline"]) == {"B"}
+    assert set(verdicts["model"]) == {"A"} and set(verdicts["baseline"]) == {"B"}
     # A's mean minus B's, in % of steps: the mean over seeds of each seed's mean
     seed_means = rows.groupby(["scenario", "model", "seed"])["CR_total"].mean().groupby(["scenario", "model"]).mean()
     cpm = verdicts[(verdicts["scenario"] == "CPM") & (verdicts["metric"] == "CR_total")].iloc[0]

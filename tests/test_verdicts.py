@@ -11,15 +11,26 @@ from scipy import stats
 
 from sigmarl.report.compare.verdicts import Design, verdict_table, verdicts_markdown
 from sigmarl.report.seeds.plan import plan_table, plan_text
-from sigmarl.stats.engine import MC_ERROR, comparison_test
-from sigmarl.stats.power import (
-    difference_power,
-    equivalence_power,
-    seeds_for_difference,
-    seeds_for_equivalence,
-)
-from sigmarl.stats.tests import holm, welch
-from sigmarl.stats.variance import components
+from sigmarl.stats.bootstrap import components
+from sigmarl.stats.engine import MC_ERROR, comparison_test, holm, power, seeds_needed, welch
+
+W = (1.0, -1.0)
+
+
+def seeds_for_difference(delta, va, vb, alpha, target):
+    return seeds_needed(delta, [va, vb], W, alpha, target)
+
+
+def seeds_for_equivalence(delta, va, vb, margin, alpha, target):
+    return seeds_needed(delta, [va, vb], W, alpha, target, margin=margin)
+
+
+def difference_power(n, delta, va, vb, alpha):
+    return power(n, delta, [va, vb], W, alpha)
+
+
+def equivalence_power(n, delta, va, vb, margin, alpha):
+    return power(n, delta, [va, vb], W, alpha, margin=margin)
 
 
 def test_holm_hand_worked():
@@ -131,7 +142,7 @@ def test_verdict_rules_and_holm_over_the_study():
     })
     design = Design(variants=["M0", "M1", "M2", "M3"], metrics=("CR_total",), margins={"CR_total": 0.3})
     table = verdict_table(rows, design)
-    got = dict(zip(zip(table["scenario"], table["variant"], strict=True), table["verdict"], strict=True))
+    got = dict(zip(zip(table["scenario"], table["model"], strict=True), table["verdict"], strict=True))
     assert got == {("A", "M1"): "worse", ("A", "M2"): "equivalent", ("A", "M3"): "undecided",
                    ("B", "M1"): "better"}
     # Holm's family is the 4 comparisons of the study (M2 and M3 are absent from B)
@@ -139,7 +150,15 @@ def test_verdict_rules_and_holm_over_the_study():
     assert table["p_difference_holm"].to_numpy() == pytest.approx(holm(raw))
     assert table["p_difference_holm"].max() <= 1 and (table["p_difference_holm"] >= raw).all()
     undecided = table[table["verdict"] == "undecided"].iloc[0]
-    assert undecided["seeds_needed"] >= undecided["seeds_needed_unadjusted"] >= 2
+    # at Holm's level for the first open comparison of each kind (alpha / 2 without a difference, alpha / 3
+    # without equivalence): the engine's rule,
+    # at least as many seeds as at alpha itself, and the easier of the two decisions
+    a, b = [np.array([np.mean(s) for s in rows_of]) for rows_of in ([[1.0, 3.0], [0.2, 0.4], [2.0, 2.6], [0.1, 0.5], [3.0, 1.0]],
+                                                                  [[1.0, 1.2], [1.1, 1.2], [1.0, 1.1], [1.2, 1.0], [1.1, 1.1]])]
+    variances, d = [np.var(a, ddof=1), np.var(b, ddof=1)], a.mean() - b.mean()
+    expected = min(n for n in (seeds_needed(d, variances, W, 0.05 / 2, 0.8),
+                               seeds_needed(d, variances, W, 0.05 / 3, 0.8, margin=0.3)) if n is not None)
+    assert undecided["seeds_needed"] == expected >= seeds_needed(d, variances, W, 0.05, 0.8) >= 2
     text = verdicts_markdown(table, design)
     assert "| A | CR_total (%) | M2 | 5/5 |" in text and "equivalent within ±0.3 pp" in text
     assert "undecided" in plan_text(plan_table(rows, design), design)
@@ -168,13 +187,13 @@ def test_each_variant_against_its_own_baseline():
     design = Design(variants=list(seeds), baseline="M0-paper", baselines={"M4": "M0"},
                     metrics=("CR_total",), margins={"CR_total": 0.1})
     table = verdict_table(rows, design)
-    assert list(zip(table["variant"], table["baseline"], strict=True)) == [
+    assert list(zip(table["model"], table["baseline"], strict=True)) == [
         ("M4-paper", "M0-paper"), ("M0", "M0-paper"), ("M4", "M0")]
     means = {m: np.array([np.mean(s) for s in v]) for m, v in seeds.items()}
     for _, r in table.iterrows():
-        a, b = means[r["variant"]], means[r["baseline"]]
+        a, b = means[r["model"]], means[r["baseline"]]
         assert r["difference"] == pytest.approx(a.mean() - b.mean())
-        assert r["p_welch"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue, rel=1e-6)
+        assert welch(a, b, 0.1).p_difference == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue, rel=1e-6)
         # decided by the comparison engine, whose p is the largest over its null worlds: at least the
         # pooled world's, scipy's exact permutation test of Welch's t (252 splits)
         assert r["p_difference"] == comparison_test(a, b, 0.1).p_difference

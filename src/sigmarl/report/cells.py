@@ -36,7 +36,7 @@ from sigmarl.metrics import (
 )
 from sigmarl.scenarios import scenario_names
 from sigmarl.stats import bootstrap as bs
-from sigmarl.stats.intervals import mean_ci
+from sigmarl.stats.bootstrap import mean_ci
 
 SUMMARY_COLUMNS = ["scenario", "model", "metric", "unit", "mean", "ci_low", "ci_high", "std", "n", "n_seeds",
                    "seed_std", "trimmed"]

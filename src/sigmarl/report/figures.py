@@ -31,7 +31,7 @@ from sigmarl.metrics import BY_NAME, COLLISION_COLUMNS, FIGURES, HEADLINE, label
 from sigmarl.report.compare.verdicts import seed_values
 from sigmarl.report.training import LAST
 from sigmarl.stats import bootstrap as bs
-from sigmarl.stats.profiles import scenario_profiles, seed_band
+from sigmarl.stats.bootstrap import scenario_profiles, seed_band
 
 DISTRIBUTION_METRICS = {name: (label(name), BY_NAME[name].scale) for name in names(FIGURES)}
 

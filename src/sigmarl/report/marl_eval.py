@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.metrics import METRIC_COLUMNS, ROW_UNITS
-from sigmarl.stats.intervals import t_critical
+from sigmarl.stats.bootstrap import t_critical
 
 ENVIRONMENT = "sigmarl"
 

@@ -15,6 +15,8 @@ at 10 seeds in tests/test_whole_seed_coverage.py, against 94 % resampling whole 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
@@ -88,7 +90,7 @@ def aggregate_scores(cell_list: list[Cell], composite: pd.DataFrame, models: lis
         }
         wide = bs.expanded_level(level, reps[0].shape[-1])
         for name, (value, samples) in stats.items():
-            lo, hi = bs.percentile_interval(samples, wide)
+            lo, hi = bs.percentile_interval(samples, wide) if reps[0].shape[-1] > 1 else (math.nan, math.nan)
             records.append({"model": model, "statistic": name, "value": float(value), "ci_low": float(lo),
                             "ci_high": float(hi), "n_scenarios": len(mine), "n_runs": len(runs)})
     return pd.DataFrame(records, columns=AGGREGATE_COLUMNS)
@@ -135,7 +137,8 @@ def improvement(rows: pd.DataFrame, models: list[str], *, reference: str | None 
             p = bs.probability_of_improvement(ref, other)
             samples = bs.bootstrap_improvement(ref, other, n_boot, bs.rng_for("poi", scenario, reference, model,
                                                                               metric, trim))
-            lo, hi = bs.percentile_interval(samples, level)
+            # one seed a side: no seed to resample, so no interval (a simulations-only width is not one)
+            lo, hi = bs.percentile_interval(samples, level) if min(len(ref), len(other)) > 1 else (math.nan, math.nan)
             records.append({"scenario": scenario, "reference": reference, "model": model, "metric": metric,
                             "probability": p, "ci_low": float(lo), "ci_high": float(hi),
                             "n_seeds_reference": len(ref), "n_seeds_model": len(other)})
@@ -168,7 +171,8 @@ def improvement_overall(rows: pd.DataFrame, models: list[str], *, reference: str
         p = np.mean([bs.probability_of_improvement(x, y) for x, y in zip(ref, other, strict=True)])
         samples = np.mean([bs.bootstrap_improvement(x, y, n_boot, rng, picks)
                            for x, y in zip(ref, other, strict=True)], axis=0)
-        lo, hi = bs.percentile_interval(samples, bs.expanded_level(level, min(len(seeds_ref), len(seeds_other))))
+        n = min(len(seeds_ref), len(seeds_other))
+        lo, hi = bs.percentile_interval(samples, bs.expanded_level(level, n)) if n > 1 else (math.nan, math.nan)
         records.append({"scenario": OVERALL, "reference": reference, "model": model, "metric": metric,
                         "probability": float(p), "ci_low": float(lo), "ci_high": float(hi),
                         "n_seeds_reference": len(seeds_ref), "n_seeds_model": len(seeds_other)})
@@ -190,10 +194,17 @@ def _seed_groups(rows: pd.DataFrame, metric: str) -> tuple[list, list[np.ndarray
 
 
 
+def _interval_or_dash(value: float, lo: float, hi: float, digits: int) -> str:
+    """`interval_text`, with `[–]` where one seed gave no interval."""
+    return interval_text(value, lo, hi, digits) + ("" if math.isfinite(lo) and math.isfinite(hi) else " [–]")
+
+
 def statistics_markdown(improvement: pd.DataFrame, aggregates: pd.DataFrame, *, trim: bool = False,
                         digits: int = TABLE_DIGITS) -> str:
-    """Markdown of `improvement` (scenarios x models) and `aggregate_scores`."""
+    """Markdown of `improvement` (scenarios x models) and `aggregate_scores`; `[–]` where one seed
+    gave no interval."""
     lines: list[str] = []
+
     if len(improvement):
         reference, metric = improvement["reference"].iloc[0], improvement["metric"].iloc[0]
         others = list(dict.fromkeys(improvement["model"]))
@@ -203,7 +214,7 @@ def statistics_markdown(improvement: pd.DataFrame, aggregates: pd.DataFrame, *, 
                   "| Scenario | " + " | ".join(f"{reference} vs {m}" for m in others) + " |",
                   "|---|" + "---:|" * len(others)]
         for scenario in dict.fromkeys(improvement["scenario"]):
-            row = [interval_text(*cells.loc[(scenario, m), ["probability", "ci_low", "ci_high"]], digits)
+            row = [_interval_or_dash(*cells.loc[(scenario, m), ["probability", "ci_low", "ci_high"]], digits)
                    if (scenario, m) in cells.index else MISSING for m in others]
             lines.append(f"| {scenario} | " + " | ".join(row) + " |")
         lines += ["", "A simulation of a random seed of each model is compared; ties count half; "
@@ -217,7 +228,7 @@ def statistics_markdown(improvement: pd.DataFrame, aggregates: pd.DataFrame, *, 
         lines += ["Composite score aggregated over scenarios [95% interval, whole seeds resampled]:", "",
                   "| Model | " + " | ".join(stats) + " | scenarios | runs |", "|---|" + "---:|" * (len(stats) + 2)]
         for model in dict.fromkeys(aggregates["model"]):
-            row = [interval_text(*cells.loc[(model, s), ["value", "ci_low", "ci_high"]], digits) for s in stats]
+            row = [_interval_or_dash(*cells.loc[(model, s), ["value", "ci_low", "ci_high"]], digits) for s in stats]
             first = cells.loc[(model, stats[0])]
             lines.append(f"| {model} | " + " | ".join(row) + f" | {int(first['n_scenarios'])} | {int(first['n_runs'])} |")
         lines += ["", "Per-seed composite scores with each scenario's normalisers fixed (their mean over "

@@ -14,20 +14,29 @@ import pandas as pd
 from sigmarl.metrics import BENCHMARK, CS, HEADLINE, in_table
 from sigmarl.report import scores, tables
 from sigmarl.report.cells import cells, composite_scores, scenario_order, summarise, trim_collisions
-from sigmarl.report.compare.curve_verdicts import (
+from sigmarl.report.compare.curves import (
     curve_verdicts_markdown,
     paper_seed_table,
     separation_table,
 )
-from sigmarl.report.compare.findings import findings_markdown
-from sigmarl.report.compare.interactions import PAPERS_WAY, interaction_table, interactions_markdown
 from sigmarl.report.compare.paper_policies import explain, policy_markdown, policy_table
-from sigmarl.report.compare.replication import replication_markdown, replication_table
-from sigmarl.report.compare.verdicts import verdict_table, verdicts_markdown
+from sigmarl.report.compare.replication import PAPERS_WAY, replication_markdown, replication_table
+from sigmarl.report.compare.verdicts import (
+    findings_markdown,
+    interaction_table,
+    interactions_markdown,
+    verdict_table,
+    verdicts_markdown,
+)
 from sigmarl.report.draft import Draft, Section
 from sigmarl.report.marl_eval import export_files, interval_data
-from sigmarl.report.seeds.next_seed import next_seed_markdown, prediction_table, slow_seed_table
-from sigmarl.report.seeds.per_seed import seed_table, seeds_markdown
+from sigmarl.report.seeds.per_seed import (
+    next_seed_markdown,
+    prediction_table,
+    seed_table,
+    seeds_markdown,
+    slow_seed_table,
+)
 from sigmarl.report.study import caption, provenance_markdown, reward_differs, study_markdown
 from sigmarl.report.training import paper_last_rewards, training_markdown, training_summary
 

@@ -1,31 +1,22 @@
 """Seed-aware statistics: two-level (seeds, then simulations) bootstrap, probability of
-improvement, interquartile mean.
+improvement, interquartile mean, performance profiles, variance components, t intervals.
 
-A cell's evaluation rows come from a few trained policies (seeds), each run on the same
-simulations. Simulations of one seed share that seed's policy, so pooling them as
-independent would understate the uncertainty. Here every estimate weighs the seeds equally
-(the mean over seeds of each seed's mean over simulations), and its interval comes from a
-two-level bootstrap: each replicate draws the seeds with replacement, then each drawn seed's
-simulations with replacement. With one seed it is the ordinary bootstrap of the simulations;
-with one value per seed, the bootstrap of the seeds; a single value gives a zero-width interval.
-Intervals are percentile intervals of the replicates.
-
-Why not rliable (Agarwal et al. 2021), the field's standard: rliable 1.2.0 resolves to arch
-7.2.0, which fails at import with our pandas 3 (`deprecate_kwarg` changed signature), and it
-pulls in statsmodels, arch, seaborn and formulaic (~100 MB) for what is a few lines of
-numpy; its stratified bootstrap also resamples runs only, not the simulations within them.
-scipy.stats.bootstrap resamples flat samples (no nesting), so it does not fit either; the
-tests use it as an independent check of the one-seed case.
-
-Every bootstrap draws from its own generator seeded from BOOT_SEED and the cell's name,
-so results do not depend on which other cells or models are in the report.
+Simulations of one seed share that seed's policy, so every estimate weighs the seeds equally
+(the mean over seeds of each seed's mean over simulations), and its interval is the percentile
+interval of a two-level bootstrap: each replicate draws the seeds with replacement, then each
+drawn seed's simulations. Not rliable (its 1.2.0 fails at import with our pandas 3, pulls ~100 MB
+of dependencies, and resamples runs only) nor scipy.stats.bootstrap (flat samples, no nesting;
+the tests use it as a check of the one-seed case). Every bootstrap draws from a generator seeded
+from BOOT_SEED and the cell's name, so a cell's interval does not depend on the other cells.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 import zlib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
@@ -215,3 +206,139 @@ def iqm(values: np.ndarray, axis: int = -1) -> np.ndarray:
     n = values.shape[axis]
     cut = n // 4
     return np.where(has_nan, math.nan, np.take(values, np.arange(cut, n - cut), axis=axis).mean(axis=axis))
+
+
+# Performance profiles, as rliable draws them: a model's profile is the fraction of its simulations
+# whose CR_total exceeds tau, for every tau (lower is better); each seed weighs equally, scenarios'
+# profiles are averaged, and the band is the percentile interval over two-level bootstrap
+# replicates drawn per scenario (stratified). The training curves' band: per iteration, the
+# percentile interval of the mean over seeds drawn with replacement.
+
+
+def exceedance(values: np.ndarray, valid: np.ndarray, taus: np.ndarray) -> np.ndarray:
+    """[..., T]: per seed slot, the fraction of its valid values above each tau, averaged over
+    the seed axis (-2) with seeds weighing equally; values/valid are [..., S, n]."""
+    above = (values[..., None] > taus) & valid[..., None]  # [..., S, n, T]
+    counts = valid.sum(-1)[..., None]  # [..., S, 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_seed = above.sum(-2) / counts  # [..., S, T]
+    return np.nanmean(np.where(counts > 0, per_seed, np.nan), axis=-2)
+
+
+def profile(groups: Sequence[np.ndarray], taus: np.ndarray) -> np.ndarray:
+    """[T]: the fraction of simulations above each tau (seeds weigh equally); groups are each
+    seed's 1-D finite values."""
+    values, lengths = padded([np.asarray(g, float)[:, None] for g in groups])
+    valid = np.arange(values.shape[1]) < lengths[:, None]
+    return exceedance(values[..., 0], valid, taus)
+
+
+def profile_replicates(groups: Sequence[np.ndarray], taus: np.ndarray, n_boot: int,
+                       rng: np.random.Generator) -> np.ndarray:
+    """[B, T]: the profile over two-level bootstrap replicates of the seeds' simulations."""
+    draws, valid = resample([np.asarray(g, float)[:, None] for g in groups], n_boot, rng)
+    return exceedance(draws[..., 0], valid, taus)
+
+
+def scenario_profiles(per_scenario: dict[str, Sequence[np.ndarray]], taus: np.ndarray, n_boot: int,
+                      name: str, level: float = LEVEL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mean over scenarios of their profiles, with its stratified-bootstrap band (lo, hi)."""
+    points, reps = [], []
+    for scenario, groups in per_scenario.items():
+        points.append(profile(groups, taus))
+        reps.append(profile_replicates(groups, taus, n_boot, rng_for("profile", name, scenario)))
+    lo, hi = percentile_interval(np.mean(reps, axis=0), level)
+    return np.mean(points, axis=0), lo, hi
+
+
+def seed_band(per_seed: np.ndarray, n_boot: int, rng: np.random.Generator, level: float = LEVEL
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row of per_seed [I, S] (NaN where a seed lacks the row): the mean over the seeds
+    and the percentile interval of that mean over resampled seeds."""
+    per_seed = np.asarray(per_seed, float)
+    pick = rng.integers(0, per_seed.shape[1], (n_boot, per_seed.shape[1]))
+    with warnings.catch_warnings(), np.errstate(invalid="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)  # a replicate that drew only NaN seeds
+        means = np.nanmean(per_seed[:, pick], axis=-1).T  # [B, I]
+        lo, hi = percentile_interval(means, level)
+        return np.nanmean(per_seed, axis=1), lo, hi
+
+
+# Two-level variance components of a cell: simulation j of seed i = mu + a_i + e_ij, seed effects of
+# variance sigma_seed^2, simulation noise sigma_sim^2, by one-way random-effects ANOVA (method of
+# moments): MSW = sum_ij (x_ij - xbar_i)^2 / (N - k), MSB = sum_i n_i (xbar_i - xbar)^2 / (k - 1),
+# sigma_sim^2 = MSW, sigma_seed^2 = max(0, (MSB - MSW) / n0), n0 = (N - sum_i n_i^2 / N) / (k - 1).
+# A seed's mean over n simulations has variance sigma_seed^2 + sigma_sim^2 / n.
+
+
+@dataclass(frozen=True)
+class Components:
+    n_seeds: int
+    n_sims: float  # simulations per seed (their mean when unbalanced)
+    sigma2_seed: float
+    sigma2_sim: float
+
+    def seed_mean_variance(self, n_sims: float | None = None) -> float:
+        """Variance of one seed's mean over n_sims simulations (default: as measured)."""
+        n = self.n_sims if n_sims is None else n_sims
+        return self.sigma2_seed + self.sigma2_sim / n
+
+    @property
+    def seed_share(self) -> float:
+        """Fraction of a seed mean's variance that is seed-to-seed (NaN when it is 0)."""
+        total = self.seed_mean_variance()
+        return self.sigma2_seed / total if total > 0 else math.nan
+
+    @property
+    def spread_ratio(self) -> float:
+        """sigma_seed^2 / (sigma_sim^2 / n_sims): how many times the seeds' spread exceeds the
+        spread the simulations of one seed leave in its mean (inf when that is 0)."""
+        sim = self.sigma2_sim / self.n_sims
+        if sim == 0:
+            return math.inf if self.sigma2_seed > 0 else math.nan
+        return self.sigma2_seed / sim
+
+
+def components(groups: Sequence[np.ndarray]) -> Components:
+    """Variance components from each seed's 1-D array of finite values (seeds with none
+    skipped). With one seed sigma_seed^2 is NaN; with one simulation per seed sigma_sim^2 is."""
+    groups = [np.asarray(g, float)[np.isfinite(g)] for g in groups]
+    groups = [g for g in groups if len(g)]
+    k = len(groups)
+    sizes = np.array([len(g) for g in groups], float)
+    total = sizes.sum()
+    means = np.array([g.mean() for g in groups])
+    grand = float(np.dot(sizes, means) / total)
+    ssw = float(sum(((g - m) ** 2).sum() for g, m in zip(groups, means, strict=True)))
+    msw = ssw / (total - k) if total > k else math.nan
+    if k < 2:
+        return Components(k, float(sizes.mean()), math.nan, msw)
+    msb = float(np.dot(sizes, (means - grand) ** 2)) / (k - 1)
+    n0 = (total - (sizes**2).sum() / total) / (k - 1)
+    within = 0.0 if math.isnan(msw) else msw
+    return Components(k, float(sizes.mean()), max(0.0, (msb - within) / n0), msw)
+
+
+def t_critical(df: float, level: float = 0.95) -> float:
+    """The t with P(|T| < t) = level: the two-sided critical value for a `level` interval."""
+    if not df > 0:
+        raise ValueError(f"degrees of freedom must be positive, got {df}")
+    if not 0 < level < 1:
+        raise ValueError(f"confidence level must lie in (0, 1), got {level}")
+    return float(stats.t.ppf(0.5 + level / 2, df))
+
+
+def mean_ci(values: Iterable[float], level: float = 0.95) -> tuple[float, float, float, int]:
+    """(mean, CI half-width, sample standard deviation, n) of the finite values.
+
+    The half-width is t_(n-1) · s / √n; NaN when fewer than two values make a spread.
+    """
+    xs = [float(v) for v in values if math.isfinite(float(v))]
+    n = len(xs)
+    if n == 0:
+        return math.nan, math.nan, math.nan, 0
+    mean = math.fsum(xs) / n
+    if n == 1:
+        return mean, math.nan, math.nan, 1
+    std = math.sqrt(math.fsum((x - mean) ** 2 for x in xs) / (n - 1))
+    return mean, t_critical(n - 1, level) * std / math.sqrt(n), std, n

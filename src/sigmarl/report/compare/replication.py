@@ -36,15 +36,64 @@ import pandas as pd
 
 from sigmarl.metrics import COMPOSITE
 from sigmarl.report.cells import trim_collisions
-from sigmarl.report.compare.interactions import (
-    CLAIM_COLUMNS,
-    claim_interactions,
-    claim_interactions_lines,
-)
-from sigmarl.report.compare.verdicts import Design, seed_values
+from sigmarl.report.compare.verdicts import Design, interaction_table, seed_values
 from sigmarl.report.tables import p_text, paper_values, signed, struck_out
 from sigmarl.stats import bootstrap as bs
 from sigmarl.stats.engine import Null, difference, holm, seeds_needed
+
+# A claim of the replication table (Mk - M0) beside the study's interaction on it: Mk - M0 under
+# another condition (x against its own baseline) against ours (y = Mk against M0), CR_total.
+CLAIM_COLUMNS = ["interaction", "interaction_seeds", "interaction_difference", "interaction_ci_low",
+                 "interaction_ci_high", "p_interaction", "interaction_verdict"]
+PAPERS_WAY, AGAINST = "paper's direction", "against the paper's direction"
+
+
+def claim_interactions(trimmed: pd.DataFrame, design: Design, claims: pd.DataFrame, baseline: str) -> pd.DataFrame:
+    """`CLAIM_COLUMNS` per row of `claims` (the replication table's), from the design's
+    interactions whose y is the claim's model compared with `baseline`, on CR_total per scenario
+    (the engine's test over their own Holm family). The verdict: **paper's direction** where a zero
+    interaction is rejected and it moves Mk - M0 the way the paper's difference lies, **against
+    the paper's direction** where it is rejected the other way, **same** within the margin, else
+    **undecided** (always with one seed in a group). Empty where the claim has no interaction."""
+    chosen = {name: (x, y) for name, (x, y) in design.interactions.items() if design.baseline_of(y) == baseline}
+    out = pd.DataFrame(index=claims.index, columns=CLAIM_COLUMNS)
+    if not chosen:
+        return out
+    table = interaction_table(trimmed, replace(design, interactions=chosen, metrics=("CR_total",), scenarios=None))
+    by_claim = {(r["scenario"], chosen[r["interaction"]][1]): r for _, r in table.iterrows()}
+    groups = trimmed.groupby("model")["seed"].nunique()
+    for i, claim in claims.iterrows():
+        r = by_claim.get((claim["scenario"], claim["model"]))
+        if r is None or claim["claim"] != "difference":
+            continue
+        x, y = chosen[r["interaction"]]
+        seeds = "/".join(str(int(groups.get(m, 0))) for m in (x, design.baseline_of(x), y, design.baseline_of(y)))
+        way = r["difference"] * claim["paper"] > 0
+        verdict = (PAPERS_WAY if way else AGAINST) if r["verdict"] == "differs" else r["verdict"]
+        out.loc[i] = [x, seeds, r["difference"], r["ci_low"], r["ci_high"], r["p_difference_holm"], verdict]
+    return out
+
+
+def claim_interactions_lines(table: pd.DataFrame) -> list[str]:
+    """The claims that have an interaction, as a Markdown table (none: no lines)."""
+    rows = table[table["interaction_verdict"].notna() & (table["interaction_verdict"] != "")]
+    if not len(rows):
+        return []
+    lines = ["", "Does the other condition explain a claim? Its Mk − M0 against ours (x: the condition's column; "
+             f"difference of differences, CR_total in pp, the comparison engine, {len(rows)} tests Holm-corrected):",
+             "", "| Scenario | Model | x | seeds x / its M0 / Mk / M0 | paper | difference of differences [95% CI] "
+             "| p (Holm) | verdict |", "|---|---|---|---|---:|---|---:|---|"]
+    for _, r in rows.iterrows():
+        lines.append(f"| {r['scenario']} | {r['model']} | {r['interaction']} | {r['interaction_seeds']} | "
+                     f"{signed(r['paper'], 2)} | {signed(r['interaction_difference'], 2)} "
+                     f"[{signed(r['interaction_ci_low'], 2)}, {signed(r['interaction_ci_high'], 2)}] | "
+                     f"{p_text(r['p_interaction'])} | {r['interaction_verdict']} |")
+    lines += ["", "paper's direction: a zero interaction rejected at Holm's level, the condition moving Mk − M0 the "
+              "way the paper's difference lies (then a claim that does not reproduce is explained by it, "
+              "paper_policies.md); against the paper's direction: rejected the other way; same: within the margin by "
+              "two one-sided tests; else undecided (always with one seed in a group)."]
+    return lines
+
 
 METRIC = "CR_total"
 N_BOOT = 2000
@@ -203,7 +252,7 @@ def replication_table(rows: pd.DataFrame, models: list[str], baseline: str = "M0
                       design: Design | None = None) -> pd.DataFrame:
     """Every claim the rows can test: the CR_total differences, then the rankings; beside each
     difference, the `design`'s interaction on it where it declares one over the rows' columns
-    (`interactions.claim_interactions`)."""
+    (`claim_interactions`)."""
     trimmed = trim_collisions(rows[rows["model"].isin(models)])
     parts = [difference_claims(trimmed, models, baseline, alpha), ranking_claims(trimmed, models, alpha)]
     parts = [p for p in parts if len(p)]

@@ -1,32 +1,22 @@
-"""One verdict per comparison (variant against the baseline, per scenario and metric).
+"""Comparisons decided by the comparison engine (`sigmarl.stats.engine`), read as tables: each
+variant against its baseline (`verdict_table`), a factorial study's interactions
+(`interaction_table`), and the findings in sentences (`findings_markdown`); training curves
+compared: `report.compare.curves`.
 
-The unit of replication is the seed: a seed's value is its mean over its simulations (in the
-table's units: collision rates in %, CD in cm, AS in m/s). For each comparison, with d the
-variant's mean of seed means minus the baseline's:
-
-- difference: the comparison engine's two-sided test of d = 0 (`sigmarl.stats.engine`: each
-  model resampled from its own seeds under the null, the largest p over its null worlds);
-  Welch's p is reported beside it;
-- equivalence: the engine's two one-sided tests (TOST) of d <= -margin and d >= margin, whose
-  p-value is the larger of the two;
-- the p-values of each kind are Holm-adjusted over all the study's comparisons (variants x
-  scenarios x metrics), so each kind's family-wise error rate is at most alpha.
-
-Rules, in order:
-1. **better** / **worse**: the Holm-adjusted difference p-value is <= alpha; the direction
-   comes from the sign of d and the metric's better direction (lower collision rates and CD,
-   higher AS);
-2. **equivalent within +-margin**: else, the Holm-adjusted TOST p-value is <= alpha;
-3. **undecided**: else; then `seeds_needed` is the seeds per side that a power analysis
-   (power `power`, true difference = d, variances from the two-level components) says the
-   easier of the two decisions needs at Holm's level for the first undecided comparison of
-   its kind (alpha / comparisons of that kind not yet decided); `seeds_needed_unadjusted`
-   the same at alpha itself.
-A comparison with fewer than two seeds on a side has no test (p-values NaN, counted as 1 in
-Holm's family) and is undecided.
-
-The interval of d is the engine's (1 - alpha) bootstrap-t interval, unadjusted (Welch's where
-a side has one seed or no spread).
+A verdict compares seed means (a seed's mean over its simulations, in the table's units). Per
+comparison, d is the variant's mean of seed means minus its baseline's:
+1. **better** / **worse**: the engine's two-sided p of d = 0, Holm-adjusted over every comparison of
+   the study (variants x scenarios x metrics), is <= alpha; the direction from d's sign and the
+   metric's better direction;
+2. **equivalent within +-margin**: else, the engine's TOST p (the larger of its two one-sided
+   p-values, d <= -margin and d >= margin), Holm-adjusted over the study, is <= alpha;
+3. **undecided**: else, and always with fewer than 2 seeds on a side (no test: p-values and the
+   interval "–", counted as p = 1 in Holm's family). `seeds_needed`: the engine's rule
+   (`engine.seeds_needed`: Welch's t, its noncentral distribution, checked against the engine's own
+   test by simulation) for power `power` at the observed d and the seed means' variances, at Holm's
+   level for the first undecided comparison (alpha / comparisons of that kind still open), the easier
+   of the two decisions.
+The interval of d is the engine's (1 - alpha) bootstrap-t interval, unadjusted.
 """
 
 from __future__ import annotations
@@ -39,21 +29,22 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
-from sigmarl.metrics import BY_NAME, METRICS, shown_unit
+from sigmarl.metrics import BY_NAME, METRICS, label, shown_unit
 from sigmarl.report.tables import p_text, seeds_text, signed
-from sigmarl.stats.engine import comparison_test
-from sigmarl.stats.power import seeds_for_difference, seeds_for_equivalence
-from sigmarl.stats.tests import Test, holm, verdict
-from sigmarl.stats.variance import Components, components
+from sigmarl.stats.engine import (
+    Null,
+    Test,
+    comparison_test,
+    holm,
+    interaction,
+    seeds_needed,
+    verdict,
+)
 
 DEFAULT_MARGINS = {m.name: m.margin for m in METRICS}
 
-COLUMNS = [
-    "scenario", "metric", "variant", "baseline", "n_variant", "n_baseline", "variant_mean",
-    "baseline_mean", "difference", "ci_low", "ci_high", "margin", "p_difference",
-    "p_difference_holm", "p_welch", "p_equivalence", "p_equivalence_holm", "verdict", "seeds_needed",
-    "seeds_needed_unadjusted", "decision_planned", "seed_share_variant", "seed_share_baseline",
-]  # fmt: skip
+COLUMNS = ["scenario", "metric", "model", "baseline", "seeds", "difference", "ci_low", "ci_high", "p_difference",
+           "p_difference_holm", "p_equivalent_holm", "verdict", "seeds_needed"]
 
 
 @dataclass(frozen=True)
@@ -65,7 +56,7 @@ class Design:
     # variant -> the variant it is compared with instead of `baseline` (a factorial study
     # compares within each level of the other factor, e.g. M4-paper with M0-paper, M4 with M0)
     baselines: dict[str, str] = field(default_factory=dict)
-    # name -> (x, y): x's comparison with its baseline set against y's (`report.compare.interactions`)
+    # name -> (x, y): x's comparison with its baseline set against y's (`interaction_table`)
     interactions: dict[str, tuple[str, str]] = field(default_factory=dict)
     scenarios: Sequence[str] | None = None  # None: every scenario in the rows, in order
     metrics: Sequence[str] = ("CR_total",)
@@ -131,8 +122,7 @@ class Comparison:
     metric: str
     variant: str
     test: Test
-    variant_components: Components | None
-    baseline_components: Components | None
+    variances: tuple[float, float]  # of the variant's and the baseline's seed means (NaN: one seed)
 
 
 def comparisons(rows: pd.DataFrame, design: Design) -> list[Comparison]:
@@ -147,9 +137,10 @@ def comparisons(rows: pd.DataFrame, design: Design) -> list[Comparison]:
                 mine = values.get((variant, scenario))
                 if not base or not mine:
                     continue
-                test = comparison_test(np.array([g.mean() for g in mine]), np.array([g.mean() for g in base]),
-                                       design.margins[metric], 1 - design.alpha)
-                out.append(Comparison(scenario, metric, variant, test, components(mine), components(base)))
+                a, b = np.array([g.mean() for g in mine]), np.array([g.mean() for g in base])
+                test = comparison_test(a, b, design.margins[metric], 1 - design.alpha)
+                variances = tuple(float(np.var(x, ddof=1)) if len(x) > 1 else math.nan for x in (a, b))
+                out.append(Comparison(scenario, metric, variant, test, variances))
     return out
 
 
@@ -167,51 +158,35 @@ def decide(
     return verdicts, p_diff, p_eq
 
 
-def plan_seeds(c: Comparison, margin: float, alpha_diff: float, alpha_eq: float, power: float
-               ) -> tuple[int | None, str]:
-    """Seeds per side the easier decision needs (None: none within reach), and which one."""
-    if c.variant_components is None or c.baseline_components is None:
-        return None, ""
-    va, vb = c.variant_components.seed_mean_variance(), c.baseline_components.seed_mean_variance()
-    if math.isnan(va) or math.isnan(vb):  # one seed on a side: no seed-to-seed variance yet
-        return None, ""
-    d = c.test.difference
-    options = [(n, kind) for n, kind in [
-        (seeds_for_difference(d, va, vb, alpha_diff, power), "difference"),
-        (seeds_for_equivalence(d, va, vb, margin, alpha_eq, power), "equivalence"),
-    ] if n is not None]
-    return min(options) if options else (None, "")
+def plan_seeds(c: Comparison, margin: float, alpha_diff: float, alpha_eq: float, power: float) -> int | None:
+    """Seeds per side the easier decision needs by the engine's rule (None: none within reach)."""
+    if min(c.test.n_variant, c.test.n_baseline) < 2:
+        return None
+    d, w = c.test.difference, (1.0, -1.0)
+    options = [n for n in (seeds_needed(d, c.variances, w, alpha_diff, power),
+                           seeds_needed(d, c.variances, w, alpha_eq, power, margin=margin)) if n is not None]
+    return min(options) if options else None
 
 
 def verdict_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
     """One row per comparison (COLUMNS), scenarios then metrics then variants in order."""
     comps = comparisons(rows, design)
-    directions = [BY_NAME[c.metric].direction for c in comps]
-    verdicts, p_diff, p_eq = decide([c.test for c in comps], directions, design.alpha)
-    m = len(comps)
-    open_diff = m - sum(v in ("better", "worse") for v in verdicts)
-    open_eq = m - sum(v == "equivalent" for v in verdicts)
+    verdicts, p_diff, p_eq = decide([c.test for c in comps], [BY_NAME[c.metric].direction for c in comps],
+                                    design.alpha)
+    open_diff = max(len(comps) - sum(v in ("better", "worse") for v in verdicts), 1)
+    open_eq = max(len(comps) - sum(v == "equivalent" for v in verdicts), 1)
     records = []
     for c, decided, pd_, pe in zip(comps, verdicts, p_diff, p_eq, strict=True):
-        margin = design.margins[c.metric]
         lo, hi = c.test.interval(1 - design.alpha)
-        needed, kind = plan_seeds(c, margin, design.alpha / max(open_diff, 1), design.alpha / max(open_eq, 1),
-                                  design.power)
-        unadjusted, _ = plan_seeds(c, margin, design.alpha, design.alpha, design.power)
+        needed = plan_seeds(c, design.margins[c.metric], design.alpha / open_diff, design.alpha / open_eq,
+                            design.power) if decided == "undecided" else None
         records.append({
-            "scenario": c.scenario, "metric": c.metric, "variant": c.variant, "baseline": design.baseline_of(c.variant),
-            "n_variant": c.test.n_variant, "n_baseline": c.test.n_baseline,
-            "variant_mean": c.test.variant_mean, "baseline_mean": c.test.baseline_mean,
-            "difference": c.test.difference, "ci_low": lo, "ci_high": hi, "margin": margin,
-            "p_difference": c.test.p_difference, "p_difference_holm": pd_,
-            "p_welch": c.test.p_difference_welch, "p_equivalence": c.test.p_equivalence, "p_equivalence_holm": pe, "verdict": decided,
-            "seeds_needed": needed, "seeds_needed_unadjusted": unadjusted, "decision_planned": kind,
-            "seed_share_variant": c.variant_components.seed_share,
-            "seed_share_baseline": c.baseline_components.seed_share,
-        })
+            "scenario": c.scenario, "metric": c.metric, "model": c.variant, "baseline": design.baseline_of(c.variant),
+            "seeds": f"{c.test.n_variant}/{c.test.n_baseline}", "difference": c.test.difference, "ci_low": lo,
+            "ci_high": hi, "p_difference": c.test.p_difference, "p_difference_holm": pd_, "p_equivalent_holm": pe,
+            "verdict": decided, "seeds_needed": needed})
     frame = pd.DataFrame(records, columns=COLUMNS)
-    for col in ("seeds_needed", "seeds_needed_unadjusted"):
-        frame[col] = frame[col].astype("Int64")
+    frame["seeds_needed"] = frame["seeds_needed"].astype("Int64")
     return frame
 
 
@@ -221,51 +196,177 @@ def margin_unit(metric: str) -> str:
     return "pp" if unit == "%" else unit
 
 
-def verdict_label(row: pd.Series) -> str:
-    if row["verdict"] == "equivalent":
-        return f"equivalent within ±{row['margin']:g} {margin_unit(row['metric'])}"
-    return str(row["verdict"])
+def verdict_label(verdict_: str, metric: str, design: Design) -> str:
+    if verdict_ == "equivalent":
+        return f"equivalent within ±{design.margins[metric]:g} {margin_unit(metric)}"
+    return str(verdict_)
 
 
 def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
     """The verdict table as Markdown, with the rules it applied in its notes."""
-    m = len(table)
     against = design.baseline if design.one_baseline else "each model's baseline"
+    ci = f"{100 * (1 - design.alpha):g}% CI"
     lines = [
-        f"Verdicts against {against} (seed means compared; {m} comparisons, Holm-corrected; "
+        f"Verdicts against {against} (seed means compared; {len(table)} comparisons, Holm-corrected; "
         f"α = {design.alpha:g}):",
         "",
-        "| Scenario | Metric | Model | seeds | difference [95% CI] | p (Holm) | Welch p | p equiv. (Holm) "
-        "| verdict | seeds needed at the observed difference (unadj.) |",
-        "|---|---|---|---:|---|---:|---:|---:|---|---:|",
+        f"| Scenario | Metric | Model | seeds | difference [{ci}] | p (Holm) | p equiv. (Holm) | verdict "
+        "| seeds needed |",
+        "|---|---|---|---:|---|---:|---:|---|---:|",
     ]
-    if abs(design.alpha - 0.05) > 1e-12:
-        lines[2] = lines[2].replace("95% CI", f"{100 * (1 - design.alpha):g}% CI")
     for _, r in table.iterrows():
-        unit = shown_unit(r["metric"])
-        undecided = r["verdict"] == "undecided"
-        needed = f"{seeds_text(r['seeds_needed'])} ({seeds_text(r['seeds_needed_unadjusted'])})" if undecided else "–"
-        model = r["variant"] if design.one_baseline else f"{r['variant']} vs {r['baseline']}"
+        needed = seeds_text(r["seeds_needed"]) if r["verdict"] == "undecided" else "–"
+        model = r["model"] if design.one_baseline else f"{r['model']} vs {r['baseline']}"
         lines.append(
-            f"| {r['scenario']} | {r['metric']} ({unit}) | {model} | {r['n_variant']}/{r['n_baseline']} | "
+            f"| {r['scenario']} | {r['metric']} ({shown_unit(r['metric'])}) | {model} | {r['seeds']} | "
             f"{signed(r['difference'])} [{signed(r['ci_low'])}, {signed(r['ci_high'])}] | {p_text(r['p_difference'])} "
-            f"({p_text(r['p_difference_holm'])}) | {p_text(r['p_welch'])} | {p_text(r['p_equivalence'])} ({p_text(r['p_equivalence_holm'])}) | "
-            f"{verdict_label(r)} | {needed} |"
-        )
+            f"({p_text(r['p_difference_holm'])}) | {p_text(r['p_equivalent_holm'])} | "
+            f"{verdict_label(r['verdict'], r['metric'], design)} | {needed} |")
     margins = ", ".join(f"{k} ±{design.margins[k]:g} {margin_unit(k)}" for k in design.metrics)
     lines += [
         "",
-        f"seeds: the model's / {against}'s. difference: model minus {against}, in the table's "
-        "units (pp: percentage points), with the comparison engine's bootstrap-t interval over seed means. "
-        "better / worse: the comparison engine's two-sided test of the difference of seed means (each model "
-        "resampled from its own seeds under the null; docs/concepts.md), Holm-adjusted p ≤ α; Welch p: "
-        "Welch's t-test, reported, not decided on (skewed seeds make it reject too often at few seeds); "
-        f"equivalent: the engine's two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; "
-        "otherwise undecided. seeds needed: seeds per model (and per baseline) for power "
-        f"{design.power:g} to reach the easier decision, at Holm's level (at α unadjusted in parentheses), "
-        "from the two-level variance of a seed mean (seed-to-seed plus simulations) and the observed "
-        "difference, whose interval on the same row says how far off that figure can be: a post-hoc "
-        "figure that moves with every seed added. To plan for the difference that matters (the margin), "
-        "`sigmarl report --plan`.",
+        f"seeds: the model's / {against}'s. difference: model minus {against}, in the table's units (pp: "
+        "percentage points), with the comparison engine's bootstrap-t interval over seed means (– with one seed "
+        "a side). better / worse: the engine's two-sided test of the difference of seed means (each model "
+        f"resampled from its own seeds under the null; docs/concepts.md), Holm-adjusted p ≤ α; equivalent: its "
+        f"two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; otherwise undecided (always "
+        "with fewer than 2 seeds a side). p-values: Monte Carlo error under 0.0005, except where a p lies 4 such "
+        "errors above α (there at most 0.0023; it decides nothing). seeds needed: seeds per model (and per "
+        f"baseline) at which the engine's rule (Welch's t) reaches power {design.power:g} for the easier decision at "
+        "Holm's level, at the observed difference: a post-hoc figure that moves with every seed added; to plan "
+        "for the margin, `sigmarl report --plan`.",
     ]
     return "\n".join(lines) + "\n"
+
+
+# Interactions of a factorial study (`study.interactions`: name -> [x, y]): x against its baseline
+# set against y against its own, (x - bx) - (y - by) over the seed means of four independent groups
+# (`engine.interaction`). Their own Holm family (every interaction, scenario and metric): **differs**
+# where the adjusted p of a zero interaction is <= alpha; **same within +-margin** by two one-sided
+# tests; otherwise undecided.
+INTERACTION_COLUMNS = ["scenario", "metric", "interaction", "x_difference", "y_difference", "difference", "ci_low",
+                       "ci_high", "p_difference", "p_difference_holm", "p_same_holm", "verdict"]
+
+
+def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
+    """One row per (scenario, metric, interaction) the rows can make, in that order."""
+    scenarios = list(design.scenarios) if design.scenarios is not None else list(dict.fromkeys(rows["scenario"]))
+    records = []
+    for metric in design.metrics:
+        values = seed_values(rows, metric)
+        margin = design.margins[metric]
+        for scenario in scenarios:
+            for name, (x, y) in design.interactions.items():
+                groups = [values.get((m, scenario)) for m in (x, design.baseline_of(x), y, design.baseline_of(y))]
+                if any(not g for g in groups):
+                    continue
+                r = interaction(*([g.mean() for g in gs] for gs in groups),
+                                {"zero": Null(0.0), "above": Null(-margin, "greater"), "below": Null(margin, "less")},
+                                1 - design.alpha)
+                means = [float(np.mean([g.mean() for g in gs])) for gs in groups]
+                records.append({
+                    "scenario": scenario, "metric": metric, "interaction": name, "x_difference": means[0] - means[1],
+                    "y_difference": means[2] - means[3], "difference": r.estimate, "ci_low": r.ci_low,
+                    "ci_high": r.ci_high, "p_difference": r.p["zero"], "p_same": max(r.p["above"], r.p["below"])})
+    frame = pd.DataFrame(records, columns=[*INTERACTION_COLUMNS, "p_same"])
+    if len(frame):
+        frame["p_difference_holm"] = holm(frame["p_difference"].to_numpy())
+        frame["p_same_holm"] = holm(frame["p_same"].to_numpy())
+        frame["verdict"] = [
+            "differs" if pd_ <= design.alpha else "same" if pe <= design.alpha else "undecided"
+            for pd_, pe in zip(np.nan_to_num(frame["p_difference_holm"], nan=1.0),
+                               np.nan_to_num(frame["p_same_holm"], nan=1.0), strict=True)]
+    return frame[INTERACTION_COLUMNS]
+
+
+def interactions_markdown(table: pd.DataFrame, design: Design) -> str:
+    lines = [
+        f"Interactions: does a comparison change between the two levels? (difference of differences; "
+        f"{len(table)} tests, Holm-corrected; α = {design.alpha:g}):",
+        "",
+        "| Scenario | Metric | Interaction | first difference | second difference | difference of differences "
+        "[95% CI] | p (Holm) | p same (Holm) | verdict |",
+        "|---|---|---|---|---|---|---:|---:|---|",
+    ]
+    for _, r in table.iterrows():
+        x, y = design.interactions[r["interaction"]]
+        verdict_ = f"same within ±{design.margins[r['metric']]:g} {margin_unit(r['metric'])}" \
+            if r["verdict"] == "same" else str(r["verdict"])
+        lines.append(
+            f"| {r['scenario']} | {r['metric']} ({shown_unit(r['metric'])}) | {r['interaction']} | {x} − "
+            f"{design.baseline_of(x)}: {signed(r['x_difference'])} | {y} − {design.baseline_of(y)}: "
+            f"{signed(r['y_difference'])} | {signed(r['difference'])} [{signed(r['ci_low'])}, {signed(r['ci_high'])}] "
+            f"| {p_text(r['p_difference'])} ({p_text(r['p_difference_holm'])}) | {p_text(r['p_same_holm'])} | "
+            f"{verdict_} |")
+    lines += [
+        "",
+        "difference of differences: the first minus the second, over the seed means of the four groups, with "
+        "the comparison engine's bootstrap-t interval (each group resampled from its own seeds; "
+        "docs/concepts.md). differs: a zero interaction rejected at Holm's level; same: two one-sided tests "
+        "within the metric's margin; otherwise undecided (always with fewer than 2 seeds in a group).",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+
+
+# findings.md: what a study found, in sentences built from its own numbers (a results page quotes
+# it verbatim between markers, scripts/results_blocks.py): the seeds behind each model, the
+# baseline's worst collision rate and its speed range, and each variant's verdicts per scenario.
+TOTAL = "CR_total"
+SPEED = "AS"
+
+
+def _join(names: list[str]) -> str:
+    """"A", "A and B", "A, B and C"."""
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def _seeds_sentence(summary: pd.DataFrame, models: list[str]) -> str:
+    seeds = summary.groupby("model")["n_seeds"].max()
+    counts = [f"{m} {int(seeds[m])}" for m in models if m in seeds.index]
+    return f"Seeds per model: {', '.join(counts)}."
+
+
+def _baseline_sentence(summary: pd.DataFrame, baseline: str, n_scenarios: int) -> str | None:
+    mine = summary[summary["model"] == baseline].set_index(["metric", "scenario"])["mean"]
+    if TOTAL not in mine.index.get_level_values(0):
+        return None
+    total = mine[TOTAL]
+    text = (f"{baseline}'s total collision rate is at most {total.max():.2f} % on each of the "
+            f"{n_scenarios} scenarios (worst: {total.idxmax()}, best: {total.idxmin()} at {total.min():.2f} %)")
+    if SPEED in mine.index.get_level_values(0):
+        speed = mine[SPEED]
+        text += f", at an average speed of {speed.min():.2f}–{speed.max():.2f} m/s"
+    return text + "."
+
+
+def _verdict_sentences(verdicts: pd.DataFrame, baseline: str, n_scenarios: int) -> list[str]:
+    """Per variant and metric: the scenarios of each verdict, "on all four" when all agree."""
+    out = []
+    for (metric, variant), g in verdicts.groupby(["metric", "model"], sort=False):
+        parts = []
+        for decided, scenarios in g.groupby("verdict", sort=False)["scenario"]:
+            where = "on every scenario" if len(scenarios) == n_scenarios else "on " + _join(list(scenarios))
+            parts.append(f"{decided} {where}")
+        mine, base = str(g["seeds"].iloc[0]).split("/")
+        out.append(f"- {variant} against {g['baseline'].iloc[0]} ({label(metric)}, {mine} "
+                   f"against {base} seeds): {'; '.join(parts)}.")
+    return out
+
+
+def findings_markdown(summary: pd.DataFrame, verdicts: pd.DataFrame | None, models: list[str],
+                      baseline: str | None, alpha: float = 0.05) -> str:
+    """The findings as Markdown: a paragraph of figures, then one line per compared variant."""
+    scenarios = list(dict.fromkeys(summary["scenario"]))
+    lines = [_seeds_sentence(summary, models)]
+    if baseline is not None:
+        sentence = _baseline_sentence(summary, baseline, len(scenarios))
+        if sentence:
+            lines.append(sentence)
+    text = " ".join(lines) + "\n"
+    if verdicts is not None and len(verdicts):
+        tests = ("Verdicts (the comparison engine's two-sided tests of the difference of seed means, "
+                 f"Holm-adjusted across all {len(verdicts)} comparisons, α = {alpha:g}):")
+        text += "\n" + tests + "\n\n" + "\n".join(_verdict_sentences(verdicts, baseline or "", len(scenarios))) + "\n"
+    return text

@@ -1,5 +1,5 @@
 """Per model-seed figures: each trained policy's collision rates, center-line deviation, speed and
-training reward.
+training reward; where a next seed will land, and how many seeds are slow.
 
 The table's cells average seeds; this lists them one by one, so that a claim such as "one seed
 of seven drives like the paper's M4" can be read off a generated file instead of a hand-run
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pandas as pd
 from scipy import stats
 
@@ -85,17 +86,13 @@ def _rewards(c: pd.DataFrame | None) -> dict[str, float]:
 
 
 def spearman(x: pd.Series, y: pd.Series) -> tuple[float, float]:
-    """Spearman's rank correlation and its two-sided p-value from Student's t with n - 2 degrees
-    of freedom (the approximation scipy.stats.spearmanr uses); ties share their mean rank."""
-    rx, ry = x.rank(), y.rank()
-    n = len(rx)
-    if n < 3 or rx.nunique() < 2 or ry.nunique() < 2:
+    """Spearman's rank correlation and its two-sided p-value (scipy.stats.spearmanr: Student's t
+    with n - 2 degrees of freedom; ties share their mean rank); NaN with fewer than 3 seeds or a
+    constant side."""
+    if len(x) < 3 or x.nunique() < 2 or y.nunique() < 2:
         return float("nan"), float("nan")
-    rho = float(rx.corr(ry))
-    if abs(rho) >= 1 - 1e-12:  # a perfect ranking (up to rounding): no t to compute
-        return math.copysign(1.0, rho), 0.0
-    t = rho * math.sqrt((n - 2) / (1 - rho * rho))
-    return rho, min(1.0, 2 * float(stats.t.sf(abs(t), n - 2)))
+    rho, p = stats.spearmanr(x, y)
+    return float(rho), float(p)
 
 
 def reward_collisions(table: pd.DataFrame, scenarios: list[str], min_seeds: int = MIN_SEEDS) -> pd.DataFrame:
@@ -162,3 +159,92 @@ def seeds_markdown(table: pd.DataFrame, scenarios: list[str]) -> str:
 
 def _num(x: float) -> str:
     return "–" if pd.isna(x) else f"{x:.2f}"
+
+
+# Where a next seed will land, and how many seeds are slow: the small-n practice of reporting
+# seed-to-seed spread as intervals for one more run, not only for the mean.
+#
+# Prediction interval (per model and scenario, CR_total): normal theory, mean +- t_{n-1} s
+# sqrt(1 + 1/n), its low end clipped at 0 (a rate); beside it the seeds' range [min, max], which
+# holds a next seed with probability (n-1)/(n+1) whatever the seeds' distribution (so 95 % needs
+# 39 seeds; our seed means are skewed, so the normal interval's 95 % is an approximation).
+#
+# Slow seeds: where the study declares `slow_seed` (a CR_total in %), a seed whose worst scenario
+# exceeds it is slow; each variant's proportion is compared with its baseline's by Fisher's exact
+# test (two-sided), the test for proportions of a few seeds.
+LEVEL = 0.95
+PREDICTION_COLUMNS = ["model", "scenario", "n_seeds", "mean", "sd", "pi_low", "pi_high", "min", "max",
+                      "range_coverage"]
+SLOW_COLUMNS = ["model", "baseline", "threshold", "slow", "seeds", "baseline_slow", "baseline_seeds", "p_fisher"]
+
+
+def prediction_table(seeds: pd.DataFrame, scenarios: list[str], level: float = LEVEL) -> pd.DataFrame:
+    """Per model and scenario with at least 2 seeds: the next seed's CR_total interval."""
+    records = []
+    for model, g in seeds.groupby("model", sort=False):
+        for scenario in scenarios:
+            x = g[f"CR_total_{scenario}"].dropna().to_numpy(float)
+            n = len(x)
+            if n < 2:
+                continue
+            mean, sd = float(x.mean()), float(x.std(ddof=1))
+            half = stats.t.ppf(0.5 + level / 2, n - 1) * sd * math.sqrt(1 + 1 / n)
+            records.append({"model": model, "scenario": scenario, "n_seeds": n, "mean": mean, "sd": sd,
+                            "pi_low": max(0.0, mean - half), "pi_high": mean + half, "min": float(x.min()),
+                            "max": float(x.max()), "range_coverage": (n - 1) / (n + 1)})
+    return pd.DataFrame(records, columns=PREDICTION_COLUMNS)
+
+
+def slow_seed_table(seeds: pd.DataFrame, baseline_of: dict[str, str], threshold: float) -> pd.DataFrame:
+    """Per compared variant: its slow seeds (worst CR_total above `threshold`) against its
+    baseline's, with Fisher's exact p. Empty where the threshold is 0 (not declared)."""
+    if threshold <= 0:
+        return pd.DataFrame(columns=SLOW_COLUMNS)
+    worst = seeds.groupby("model", sort=False)["CR_total_worst"]
+    counts = {m: (int((w > threshold).sum()), int(w.notna().sum())) for m, w in worst}
+    records = []
+    for model, baseline in baseline_of.items():
+        if model not in counts or baseline not in counts:
+            continue
+        (a, n), (b, m) = counts[model], counts[baseline]
+        p = float(stats.fisher_exact([[a, n - a], [b, m - b]]).pvalue)
+        records.append({"model": model, "baseline": baseline, "threshold": threshold, "slow": a, "seeds": n,
+                        "baseline_slow": b, "baseline_seeds": m, "p_fisher": p})
+    return pd.DataFrame(records, columns=SLOW_COLUMNS)
+
+
+def next_seed_markdown(prediction: pd.DataFrame, slow: pd.DataFrame, scenarios: list[str]) -> str:
+    """The two tables as Markdown (empty where neither has rows)."""
+    lines: list[str] = []
+    if len(prediction):
+        cells = prediction.set_index(["model", "scenario"])
+        lines += [
+            f"Where a next seed's CR_total (%) will land, per scenario ({' / '.join(scenarios)}): the "
+            f"{LEVEL:.0%} prediction interval (normal theory, mean ± t s √(1 + 1/n)) and the seeds' "
+            "range [min, max], which holds a next seed with probability (n − 1)/(n + 1) whatever the "
+            "distribution:",
+            "",
+            "| Model | seeds | prediction interval | range (its coverage) |",
+            "|---|---:|---|---|",
+        ]
+        for model in dict.fromkeys(prediction["model"]):
+            mine = [cells.loc[(model, s)] for s in scenarios if (model, s) in cells.index]
+            pi = " / ".join(f"[{r['pi_low']:.2f}, {r['pi_high']:.2f}]" for r in mine)
+            ranges = " / ".join(f"[{r['min']:.2f}, {r['max']:.2f}]" for r in mine)
+            n = int(np.max([r["n_seeds"] for r in mine]))
+            lines.append(f"| {model} | {n} | {pi} | {ranges} ({(n - 1) / (n + 1):.0%}) |")
+        lines.append("")
+    if len(slow):
+        threshold = float(slow["threshold"].iloc[0])
+        lines += [
+            f"Slow seeds (worst CR_total over the scenarios above {threshold:g} %), each variant against "
+            "its baseline by Fisher's exact test (two-sided, unadjusted):",
+            "",
+            "| Model | slow | baseline | baseline slow | p |",
+            "|---|---:|---|---:|---:|",
+        ]
+        for r in slow.to_dict("records"):
+            lines.append(f"| {r['model']} | {r['slow']} of {r['seeds']} | {r['baseline']} | "
+                         f"{r['baseline_slow']} of {r['baseline_seeds']} | {p_text(r['p_fisher'])} |")
+        lines.append("")
+    return "\n".join(lines)

@@ -1,25 +1,14 @@
-"""Training curves compared: when two variants' curves part, and whether the paper's seed is one of ours.
-
-Two questions the evaluation verdicts cannot answer:
-
-- **When does a difference appear?** For each declared comparison (a variant against its
-  baseline, `verdicts.Design`) and each window of `WINDOW` iterations, the comparison engine's
-  two-sided test (`sigmarl.stats.engine`) on the seeds' mean episode reward over that window,
-  Holm-corrected over every (comparison, window) test. A comparison *parts* at the first window from which every later window is decided the
-  same way. If that is early, a reduced training budget is enough to show the difference.
-- **Is the paper's curve one of ours?** The paper trained one seed per model, so its final
-  reward is one draw. Ours are several: the prediction interval for one more seed's final
-  reward (mean of the last `training.LAST` iterations), mean +- t * s * sqrt(1 + 1/n), says
-  whether the paper's value could be a seed of ours (inside) or not (above or below).
-
-Rewards of variants trained under different rules are not measured alike: the paper's rules
-change the reward (a lagged steering penalty) and where episodes end (terminal time-outs).
-
-Nor are rewards logged alike. The paper's collector carries episodes across batch ends and counts
-each whole; ours resets every batch and counts the cut segment as an episode, 0.5–0.6 lower
-(docs/deviations.md). Against the paper, a variant whose every seed logged the estimate of the
-paper's definition (`episode_reward_mean_complete`) is compared on it ("complete"); older runs
-on ours ("batch-cut"), and the table says which.
+"""Training curves compared. When does a difference appear? Per declared comparison and window of
+`WINDOW` iterations, the engine's two-sided test on the seeds' mean episode reward over the window,
+Holm-corrected over every (comparison, window); a comparison *parts* at the first window from
+which every later window is decided the same way. Is the paper's curve one of ours? Its final
+reward is one seed's; ours give the prediction interval for one more seed's final reward (mean of
+the last `training.LAST` iterations), mean +- t s sqrt(1 + 1/n). Rewards of variants trained under
+different rules are not measured alike (the paper's rules add a lagged steering penalty and
+terminal time-outs), nor logged alike: the paper's collector counts episodes whole across batch
+ends, ours counts the cut segment as an episode, 0.5-0.6 lower (docs/deviations.md); a variant
+whose every seed logged the estimate of the paper's definition (`episode_reward_mean_complete`)
+is compared on it ("complete"), older runs on ours ("batch-cut").
 """
 
 from __future__ import annotations
@@ -32,15 +21,15 @@ import pandas as pd
 from sigmarl.report.compare.verdicts import Design
 from sigmarl.report.tables import signed
 from sigmarl.report.training import LAST
+from sigmarl.stats.bootstrap import t_critical
 from sigmarl.stats.engine import Null, difference, holm
-from sigmarl.stats.intervals import t_critical
 
 WINDOW = 25  # iterations per window: the curves are noisy per iteration
 
-SEPARATION_COLUMNS = [
-    "variant", "baseline", "first", "last", "n_variant", "n_baseline", "variant_mean", "baseline_mean",
-    "difference", "ci_low", "ci_high", "p_difference", "p_difference_holm", "verdict",
-]  # fmt: skip
+SEPARATION_COLUMNS = ["model", "baseline", "first", "last", "seeds", "difference", "ci_low", "ci_high",
+                      "p_difference", "p_difference_holm", "verdict"]
+
+
 PAPER_SEED_COLUMNS = ["variant", "paper_model", "reward", "seeds", "mean", "pi_low", "pi_high", "paper", "verdict"]
 # what our side of the paper-seed comparison reads: the paper's definition, estimated, or our own
 COMPLETE, CUT = "complete", "batch-cut"
@@ -71,11 +60,9 @@ def separation_table(curves: pd.DataFrame, design: Design, window: int = WINDOW)
             x = a.loc[a["first"] == first, "reward"].to_numpy()
             y = b.loc[b["first"] == first, "reward"].to_numpy()
             r = difference(x, y, {"zero": Null(0.0)}, 1 - design.alpha)
-            rows.append({"variant": variant, "baseline": base, "first": int(first), "last": int(first + window - 1),
-                         "n_variant": len(x), "n_baseline": len(y),
-                         "variant_mean": float(np.mean(x)), "baseline_mean": float(np.mean(y)),
-                         "difference": r.estimate, "ci_low": r.ci_low, "ci_high": r.ci_high,
-                         "p_difference": r.p["zero"]})
+            rows.append({"model": variant, "baseline": base, "first": int(first), "last": int(first + window - 1),
+                         "seeds": f"{len(x)}/{len(y)}", "difference": r.estimate, "ci_low": r.ci_low,
+                         "ci_high": r.ci_high, "p_difference": r.p["zero"]})
     frame = pd.DataFrame(rows, columns=SEPARATION_COLUMNS)
     frame["p_difference_holm"] = holm(frame["p_difference"].to_numpy()) if len(frame) else []
     decided = np.nan_to_num(frame["p_difference_holm"].to_numpy(float), nan=1.0) <= design.alpha
@@ -87,7 +74,7 @@ def parting(table: pd.DataFrame) -> dict[tuple[str, str], tuple[int, str] | None
     """(variant, baseline) -> (first iteration of the window from which every later window has
     the same decided verdict, that verdict), or None where the last window is undecided."""
     out: dict[tuple[str, str], tuple[int, str] | None] = {}
-    for key, g in table.groupby(["variant", "baseline"], sort=False):
+    for key, g in table.groupby(["model", "baseline"], sort=False):
         verdicts = g.sort_values("first")["verdict"].tolist()
         firsts = g.sort_values("first")["first"].tolist()
         if not verdicts or verdicts[-1] == "undecided":
@@ -140,7 +127,7 @@ def curve_verdicts_markdown(separation: pd.DataFrame, paper_seeds: pd.DataFrame,
         ]
         parts = parting(separation)
         firsts = sorted(separation["first"].unique())
-        for (variant, base), g in separation.groupby(["variant", "baseline"], sort=False):
+        for (variant, base), g in separation.groupby(["model", "baseline"], sort=False):
             at = parts[(variant, base)]
             where = "undecided" if at is None else f"{at[1]} from iteration {at[0]}"
             cells = {int(r["first"]): _cell(r) for _, r in g.iterrows()}
@@ -174,7 +161,10 @@ def curve_verdicts_markdown(separation: pd.DataFrame, paper_seeds: pd.DataFrame,
 
 def _cell(r: pd.Series) -> str:
     if math.isnan(r["ci_low"]):
-        return f"{signed(r['difference'])} (n {r['n_variant']}/{r['n_baseline']})"
+        return f"{signed(r['difference'])} (n {r['seeds']})"
     star = "*" if r["verdict"] != "undecided" else ""
     return f"{signed(r['difference'])}{star} [{signed(r['ci_low'])}, {signed(r['ci_high'])}]"
+
+
+
 
