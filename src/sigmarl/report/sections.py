@@ -14,6 +14,7 @@ import pandas as pd
 from sigmarl.metrics import BENCHMARK, CS, HEADLINE, in_table
 from sigmarl.report import scores, tables
 from sigmarl.report.cells import cells, composite_scores, scenario_order, summarise, trim_collisions
+from sigmarl.report.compare import verdicts
 from sigmarl.report.compare.curves import (
     curve_verdicts_markdown,
     paper_seed_table,
@@ -21,22 +22,9 @@ from sigmarl.report.compare.curves import (
 )
 from sigmarl.report.compare.paper_policies import explain, policy_markdown, policy_table
 from sigmarl.report.compare.replication import PAPERS_WAY, replication_markdown, replication_table
-from sigmarl.report.compare.verdicts import (
-    findings_markdown,
-    interaction_table,
-    interactions_markdown,
-    verdict_table,
-    verdicts_markdown,
-)
 from sigmarl.report.draft import Draft, Section
 from sigmarl.report.marl_eval import export_files, interval_data
-from sigmarl.report.seeds.per_seed import (
-    next_seed_markdown,
-    prediction_table,
-    seed_table,
-    seeds_markdown,
-    slow_seed_table,
-)
+from sigmarl.report.seeds import per_seed
 from sigmarl.report.study import caption, provenance_markdown, reward_differs, study_markdown
 from sigmarl.report.training import paper_last_rewards, training_markdown, training_summary
 
@@ -159,16 +147,16 @@ TRAINING = Section("training", {
 
 def seeds_section(d: Draft) -> None:
     """Each model-seed's rates, deviation, speed and rewards, and where a next seed will land."""
-    seeds = seed_table(d.rows, d.curves, d.models)
+    seeds = per_seed.seed_table(d.rows, d.curves, d.models)
     scenarios = scenario_order(d.rows)
-    prediction = prediction_table(seeds, scenarios)
+    prediction = per_seed.prediction_table(seeds, scenarios)
     design = d.design
-    slow = slow_seed_table(seeds, {v: design.baseline_of(v) for v in design.compared}, design.slow_seed)
+    slow = per_seed.slow_seed_table(seeds, {v: design.baseline_of(v) for v in design.compared}, design.slow_seed)
     d.write("seeds", "seeds.csv", seeds)
     d.write("seed_prediction", "seed_prediction.csv", prediction)
     d.write("slow_seeds", "slow_seeds.csv", slow)
-    spread = next_seed_markdown(prediction, slow, scenarios)
-    d.write("seeds_md", "seeds.md", seeds_markdown(seeds, scenarios) + ("\n" + spread if spread else ""))
+    spread = per_seed.next_seed_markdown(prediction, slow, scenarios)
+    d.write("seeds_md", "seeds.md", per_seed.seeds_markdown(seeds, scenarios) + ("\n" + spread if spread else ""))
 
 
 SEEDS = Section("seeds", {
@@ -259,12 +247,12 @@ def verdicts_section(d: Draft) -> None:
     if design.baseline not in d.models or not design.compared:
         return
     measured = trim_collisions(d.rows) if d.options.trim else d.rows
-    d.verdicts = verdict_table(measured, design)
-    d.verdicts_markdown = verdicts_markdown(d.verdicts, design)
+    d.verdicts = verdicts.verdict_table(measured, design)
+    d.verdicts_markdown = verdicts.verdicts_markdown(d.verdicts, design)
     d.write("verdicts", "verdicts.csv", d.verdicts)
-    interactions = interaction_table(measured, design) if design.interactions else None
+    interactions = verdicts.interaction_table(measured, design) if design.interactions else None
     if interactions is not None and len(interactions):  # a factorial study's question
-        d.verdicts_markdown += "\n" + interactions_markdown(interactions, design)
+        d.verdicts_markdown += "\n" + verdicts.interactions_markdown(interactions, design)
         d.write("interactions", "interactions.csv", interactions)
     d.write("verdicts_md", "verdicts.md", d.verdicts_markdown)
 
@@ -273,7 +261,7 @@ def findings_section(d: Draft) -> None:
     """What the study found, in sentences of its own figures."""
     if d.summary is None or not len(d.summary):
         return
-    d.write("findings", "findings.md", findings_markdown(d.summary, d.verdicts, d.models, d.baseline,
+    d.write("findings", "findings.md", verdicts.findings_markdown(d.summary, d.verdicts, d.models, d.baseline,
                                                         d.design.alpha))
 
 
@@ -310,7 +298,7 @@ def replication_section(d: Draft) -> None:
 
 VERDICTS = Section("verdicts", {
     "verdicts.csv": "each comparison (variant against its baseline, per scenario and metric): the difference "
-                    "with the comparison engine's interval and p-values, Welch's p, the verdict and the seeds it needs",
+                    "with the comparison engine's interval and p-values, the verdict and the seeds it needs",
     "verdicts.md": "the same as Markdown, a factorial study's interactions under it",
     "interactions.csv": "a factorial study's interactions (difference of differences)"},
     verdicts_section, when="with a baseline and a variant to compare")
