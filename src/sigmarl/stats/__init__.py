@@ -1,5 +1,5 @@
-"""Study-free statistics: tests, intervals, bootstrap, power, the sequential design, variance
-components and profiles, on plain arrays.
+"""Study-free statistics on plain arrays: the comparison engine (`engine`) and the seed-aware
+bootstrap, profiles, variance components and intervals (`bootstrap`).
 
 Nothing here knows models, scenarios or metrics; the report (`sigmarl.report`) brings those.
 """
