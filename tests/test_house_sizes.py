@@ -77,8 +77,8 @@ def test_the_analysis_wing_does_not_grow():
 
 
 # Metric names written out as strings outside the declaration (metrics.py) and the evaluation
-# that measures them: every other list reads the declaration. A ratchet on the way to 10.
-MAX_METRIC_LITERALS = 19
+# that measures them: every other list reads the declaration. At most 10 (today none).
+MAX_METRIC_LITERALS = 10
 METRIC_LITERAL = re.compile(r"[\"'](CR_total|CR_AA|CR_AL|CD|AS|CS)[\"']")
 
 

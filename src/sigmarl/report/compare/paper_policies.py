@@ -31,11 +31,12 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.ablation import flags_of, paper_model
+from sigmarl.metrics import CR_TOTAL
 from sigmarl.report.cells import trim_collisions
 from sigmarl.report.compare.verdicts import seed_values
 from sigmarl.report.tables import paper_values, signed
 
-METRIC = "CR_total"
+METRIC = CR_TOTAL
 TAIL = 0.9  # "in our seeds' tail": worse than at least this share of our seeds of the model
 NOT_REPRODUCED = ("not reproduced", "reversed")
 RULES = ("paper", "ours")  # the paper's rules (as it is), ours (adapted)

@@ -34,7 +34,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from sigmarl.metrics import COMPOSITE
+from sigmarl.metrics import COMPOSITE, CR_TOTAL, CS
 from sigmarl.report.cells import trim_collisions
 from sigmarl.report.compare.verdicts import Design, interaction_table, seed_values
 from sigmarl.report.tables import p_text, paper_values, signed, struck_out
@@ -59,7 +59,7 @@ def claim_interactions(trimmed: pd.DataFrame, design: Design, claims: pd.DataFra
     out = pd.DataFrame(index=claims.index, columns=CLAIM_COLUMNS)
     if not chosen:
         return out
-    table = interaction_table(trimmed, replace(design, interactions=chosen, metrics=("CR_total",), scenarios=None))
+    table = interaction_table(trimmed, replace(design, interactions=chosen, metrics=(METRIC,), scenarios=None))
     by_claim = {(r["scenario"], chosen[r["interaction"]][1]): r for _, r in table.iterrows()}
     groups = trimmed.groupby("model")["seed"].nunique()
     for i, claim in claims.iterrows():
@@ -95,7 +95,7 @@ def claim_interactions_lines(table: pd.DataFrame) -> list[str]:
     return lines
 
 
-METRIC = "CR_total"
+METRIC = CR_TOTAL
 N_BOOT = 2000
 STRUCK = "struck out by the paper"
 COLUMNS = [
@@ -220,7 +220,7 @@ def ranking_claims(rows: pd.DataFrame, models: list[str], alpha: float = 0.05,
     """Per scenario of the paper's Table I: the share of whole-seed replicates in which the
     paper's best-scored model ranks first here by composite score (`COLUMNS`)."""
     paper = paper_values()
-    scenarios = [s for s in dict.fromkeys(rows["scenario"]) if (s, "CS") in paper.index]
+    scenarios = [s for s in dict.fromkeys(rows["scenario"]) if (s, CS) in paper.index]
     per_model = {m: _seed_metric_means(rows, m, scenarios) for m in models}
     per_model = {m: v for m, v in per_model.items() if v is not None}
     if len(per_model) < 2 or not scenarios:
@@ -235,7 +235,7 @@ def ranking_claims(rows: pd.DataFrame, models: list[str], alpha: float = 0.05,
     first = np.argmax(np.nan_to_num(scores, nan=-np.inf), axis=1)  # [B, scenarios]
     records = []
     for j, scenario in enumerate(scenarios):
-        cs = paper.loc[(scenario, "CS"), [m for m in names if m in paper.columns]]
+        cs = paper.loc[(scenario, CS), [m for m in names if m in paper.columns]]
         best = str(cs.idxmax())
         share = float(np.mean(first[:, j] == names.index(best)))
         counts = np.bincount(first[:, j], minlength=len(names))

@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.errors import SigmarlError
-from sigmarl.metrics import BY_NAME, METRICS, label, shown_unit
+from sigmarl.metrics import AS, BY_NAME, CR_TOTAL, HEADLINE, METRICS, label, shown_unit
 from sigmarl.report.tables import p_text, seeds_text, signed
 from sigmarl.stats.engine import (
     Null,
@@ -59,7 +59,7 @@ class Design:
     # name -> (x, y): x's comparison with its baseline set against y's (`interaction_table`)
     interactions: dict[str, tuple[str, str]] = field(default_factory=dict)
     scenarios: Sequence[str] | None = None  # None: every scenario in the rows, in order
-    metrics: Sequence[str] = ("CR_total",)
+    metrics: Sequence[str] = (HEADLINE,)
     margins: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_MARGINS))
     alpha: float = 0.05
     power: float = 0.8
@@ -313,8 +313,8 @@ def interactions_markdown(table: pd.DataFrame, design: Design) -> str:
 # findings.md: what a study found, in sentences built from its own numbers (a results page quotes
 # it verbatim between markers, scripts/results_blocks.py): the seeds behind each model, the
 # baseline's worst collision rate and its speed range, and each variant's verdicts per scenario.
-TOTAL = "CR_total"
-SPEED = "AS"
+TOTAL = CR_TOTAL
+SPEED = AS
 
 
 def _join(names: list[str]) -> str:

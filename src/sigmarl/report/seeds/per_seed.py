@@ -14,12 +14,12 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from sigmarl.metrics import label, scaled
+from sigmarl.metrics import AS, CD, CR_AA, CR_AL, CR_TOTAL, label, scaled
 from sigmarl.report.cells import model_order, scenario_order
 from sigmarl.report.tables import p_text, signed
 from sigmarl.report.training import LAST
 
-RATES = ["CR_total", "CR_AA", "CR_AL"]
+RATES = [CR_TOTAL, CR_AA, CR_AL]
 MIN_SEEDS = 5  # fewer seeds than this give no useful rank correlation
 # The reward windows end at these fractions of a seed's training: at the paper's budget of 250
 # iterations, iterations 51-75, 126-150 and 226-250 (early, middle and final learning).
@@ -45,7 +45,7 @@ def seed_table(rows: pd.DataFrame, curves: pd.DataFrame | None, models: list[str
     keys = chosen[["model", "seed", "scenario"]]
     # in the table's units (collision rates in %)
     per_seed = pd.concat([keys, scaled(chosen)], axis=1).groupby(["model", "seed", "scenario"], sort=False)[
-        [*RATES, "CD", "AS"]].mean().sort_index()  # sorted: `.loc[(model, seed)]` without a PerformanceWarning
+        [*RATES, CD, AS]].mean().sort_index()  # sorted: `.loc[(model, seed)]` without a PerformanceWarning
     by_seed = _curves_by_seed(curves)
     records = []
     for model in models:
@@ -56,10 +56,10 @@ def seed_table(rows: pd.DataFrame, curves: pd.DataFrame | None, models: list[str
                 for scenario in scenarios:
                     record[f"{rate}_{scenario}"] = means[rate].get(scenario, float("nan"))
             for scenario in scenarios:
-                record[f"CD_{scenario}"] = means["CD"].get(scenario, float("nan"))
+                record[f"{CD}_{scenario}"] = means[CD].get(scenario, float("nan"))
             present = means.reindex(scenarios)
-            record["CR_total_worst"] = present["CR_total"].max()
-            record["AS_min"], record["AS_max"] = present["AS"].min(), present["AS"].max()
+            record[f"{CR_TOTAL}_worst"] = present[CR_TOTAL].max()
+            record[f"{AS}_min"], record[f"{AS}_max"] = present[AS].min(), present[AS].max()
             record.update(_rewards(by_seed.get((model, int(seed)))))
             records.append(record)
     return pd.DataFrame(records)
@@ -127,8 +127,8 @@ def seeds_markdown(table: pd.DataFrame, scenarios: list[str]) -> str:
         f"steps, each the seed's mean over its simulations; reward: mean episode reward over {LAST} "
         "iterations):",
         "",
-        f"| Model | seed | {label(RATES[0])} | worst | {label(RATES[1])} | {label(RATES[2])} | {label('CD')} | "
-        f"{label('AS')} | {reward_head} |",
+        f"| Model | seed | {label(RATES[0])} | worst | {label(RATES[1])} | {label(RATES[2])} | {label(CD)} | "
+        f"{label(AS)} | {reward_head} |",
         "|---|---:|---|---:|---|---|---|---|---|",
     ]
     for r in table.to_dict("records"):
