@@ -137,8 +137,13 @@ def test_improvement_per_scenario_by_hand():
     out = improvement(rows, ["M0", "M1"], n_boot=200)
     assert out[["scenario", "reference", "model"]].values.tolist() == [["CPM", "M0", "M1"]]
     assert out["probability"].iloc[0] == pytest.approx(0.9375)
-    assert out["ci_low"].iloc[0] <= 0.9375 <= out["ci_high"].iloc[0] <= 1.0
+    # one seed of M1: no interval from resampling whole seeds (shown as –)
+    assert np.isnan(out["ci_low"].iloc[0]) and np.isnan(out["ci_high"].iloc[0])
     assert (out["n_seeds_reference"].iloc[0], out["n_seeds_model"].iloc[0]) == (2, 1)
+    # a second seed of M1 (0.02 against every M0 simulation: 1 each): an interval around the estimate
+    rows = pd.concat([rows, _rows({("M1", "CPM", 1): [(0.02, 1, 0.5)]})], ignore_index=True)
+    out = improvement(rows, ["M0", "M1"], n_boot=200)
+    assert 0.0 <= out["ci_low"].iloc[0] <= out["probability"].iloc[0] <= out["ci_high"].iloc[0] <= 1.0
 
 
 def test_aggregate_scores_and_cs_intervals():

@@ -57,13 +57,13 @@ class BenchmarkSums:
     """Per-simulation sums of a rollout, [E] each, and the per-agent state they need [E, A]."""
 
     def __init__(self, n_sims: int, n_agents: int, device: torch.device | str):
-        zeros = lambda: torch.zeros(n_sims, dtype=torch.float64, device=device)  # noqa: E731
+        zeros = lambda: torch.zeros(n_sims, dtype=torch.float32, device=device)  # noqa: E731
         self.distance, self.violation = zeros(), zeros()  # m: driven; driven in a lane contact
         self.aa_events, self.al_events = zeros(), zeros()
         self.successes, self.failures = zeros(), zeros()
         self.aa = Hysteresis((n_sims, n_agents), device)
         self.al = Hysteresis((n_sims, n_agents), device)
-        self.try_distance = torch.zeros(n_sims, n_agents, dtype=torch.float64, device=device)
+        self.try_distance = torch.zeros(n_sims, n_agents, dtype=torch.float32, device=device)
         self.goal: torch.Tensor | None = None  # m to drive for a lap; inf on a route with an exit
 
     def add(self, contact_aa: torch.Tensor, contact_al: torch.Tensor, speed: torch.Tensor,
@@ -71,8 +71,8 @@ class BenchmarkSums:
         """One step: the contacts and |speed| of the state it ended in, who respawned after it, and
         each agent's goal on the route it drives now (`lap_goals` of its route, after any respawn)."""
         if self.goal is None:
-            self.goal = goal_of_route.double()  # the first step: the routes spawned on
-        step = speed.double() * DT
+            self.goal = goal_of_route.float()  # the first step: the routes spawned on
+        step = speed.float() * DT
         self.distance += step.sum(-1)
         self.violation += (step * contact_al).sum(-1)
         self.aa_events += self.aa.step(contact_aa).sum(-1)
@@ -83,7 +83,7 @@ class BenchmarkSums:
         self.successes += (lap | (respawned & ~collided)).sum(-1)  # a lap, or an exit
         self.failures += (respawned & collided).sum(-1)
         self.try_distance = torch.where(respawned, 0.0, torch.where(lap, self.try_distance - self.goal, self.try_distance))
-        self.goal = torch.where(respawned, goal_of_route.double(), self.goal)
+        self.goal = torch.where(respawned, goal_of_route.float(), self.goal)
 
     def columns(self) -> dict[str, torch.Tensor]:
         """The benchmark's metric columns, [E] each (NaN where undefined)."""
@@ -98,4 +98,4 @@ def lap_goals(road_map, device: torch.device | str) -> torch.Tensor:
     """Per route [R]: the distance of one lap of a looping route (its length); inf for a route
     with an exit (its goal is the exit)."""
     return torch.tensor([r.length if r.is_loop else float("inf") for r in road_map.routes],
-                        dtype=torch.float64, device=device)
+                        dtype=torch.float32, device=device)
