@@ -1,4 +1,4 @@
-"""Where a next seed lands and how many seeds are slow (report/seeds/per_seed.py), against hand-worked
+"""Where a next seed lands and how many seeds are slow (report/seeds.py), against hand-worked
 numbers and a simulation of normal seeds, where the prediction interval is exact."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sigmarl.report.seeds.per_seed import next_seed_markdown, prediction_table, slow_seed_table
+from sigmarl.report.seeds import next_seed_markdown, prediction_table, slow_seed_table
 
 
 def _seeds(model: str, values: list[float], scenario: str = "CPM") -> pd.DataFrame:

@@ -36,7 +36,7 @@ from permutation_reference import permutation_p, permutation_test
 from scipy import stats
 
 from sigmarl.report.compare.verdicts import decide, seed_values
-from sigmarl.report.seeds.plan import (
+from sigmarl.report.plan import (
     first_decidable_look,
     nominal_levels,
     sequential_decide,

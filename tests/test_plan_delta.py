@@ -14,7 +14,7 @@ from scipy import stats
 
 from sigmarl.cli import main
 from sigmarl.report.compare.verdicts import Design
-from sigmarl.report.seeds.plan import plan_table
+from sigmarl.report.plan import plan_table
 from sigmarl.stats.engine import Null, difference, seeds_needed
 
 W = (1.0, -1.0)

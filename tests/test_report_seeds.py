@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from sigmarl.cli import main
-from sigmarl.report.seeds.per_seed import (
+from sigmarl.report.seeds import (
     reward_collisions,
     reward_windows,
     seed_table,

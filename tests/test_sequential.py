@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from sigmarl.report.compare.verdicts import Design, decide
-from sigmarl.report.seeds.plan import (
+from sigmarl.report.plan import (
     boundaries,
     next_round,
     nominal_levels,

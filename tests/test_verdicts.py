@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 
 from sigmarl.report.compare.verdicts import Design, verdict_table, verdicts_markdown
-from sigmarl.report.seeds.plan import plan_table, plan_text
+from sigmarl.report.plan import plan_table, plan_text
 from sigmarl.stats.bootstrap import components
 from sigmarl.stats.engine import MC_ERROR, comparison_test, holm, power, seeds_needed, welch
 

@@ -68,7 +68,7 @@ REPORT_FLOORS: tuple[Floor, ...] = (
     Floor("compare", "verdicts, interactions, curves compared, replication, findings",
           ("sigmarl.report.compare",)),
     Floor("seeds", "each seed's figures, the next seed, `--plan`, `seeds=auto`'s rounds",
-          ("sigmarl.report.seeds",)),
+          ("sigmarl.report.seeds", "sigmarl.report.plan")),
     Floor("exports", "figures and marl-eval's JSON", ("sigmarl.report.figures", "sigmarl.report.marl_eval")),
     Floor("seam", "`Section`, `Draft`, `BuildOptions`", ("sigmarl.report.draft",)),
     Floor("sections", "every group's sections", ("sigmarl.report.sections",)),

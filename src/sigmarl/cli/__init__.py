@@ -144,7 +144,7 @@ def cmd_report(args: argparse.Namespace) -> None:
 
     models = None if args.models is None else args.models.split(",")
     if args.plan:
-        from sigmarl.report.seeds.plan import plan_from_folder
+        from sigmarl.report.plan import plan_from_folder
 
         print(plan_from_folder([Path(s) for s in args.source], models, study=compose_config(args.overrides).study),
               end="")

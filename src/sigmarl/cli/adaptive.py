@@ -2,11 +2,11 @@
 
 The sweep runs in rounds. The first trains the study's own seeds (`study.seeds`, at least
 two) for every variant, raised to the first look at which the permutation test can show a
-difference (`sigmarl.report.seeds.plan.first_decidable_look`: at 5 against 5 seeds its smallest p,
+difference (`sigmarl.report.plan.first_decidable_look`: at 5 against 5 seeds its smallest p,
 2/252 = 0.0079, lies above the design's level of that look, so from 3 seeds up to 10 and one
 comparison the first look is at 6 seeds; with Holm over 20 comparisons at 7). After each round every comparison (variant against the baseline, per
 scenario and decided metric) is decided again under a group-sequential design that keeps the
-error of the repeated looks at the study's level (`sigmarl.report.seeds.plan`), and each
+error of the repeated looks at the study's level (`sigmarl.report.plan`), and each
 variant with an undecided comparison gets one more seed (the baseline too, when it needs
 one), up to `study.max_seeds`. It stops when every comparison is decided or the cap is reached.
 
@@ -28,7 +28,7 @@ from sigmarl.errors import SigmarlError
 from sigmarl.readers import read_json
 from sigmarl.report.compare.verdicts import design_of
 from sigmarl.report.inputs import RunFolder, rows_of
-from sigmarl.report.seeds.plan import first_decidable_look, key, next_round
+from sigmarl.report.plan import first_decidable_look, key, next_round
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep import launch, plan_sweep
 

@@ -1,16 +1,14 @@
 """Beyond Table I: composite-score intervals, aggregate scores across scenarios, and the
 probability that the reference model (M0) has fewer collisions than each other model.
 
-Normalised score of one seed of a model in a scenario: the paper's composite score (eq. 2)
-of that seed's means, with the scenario's normalisers fixed to the mean over the compared
-models of the table's estimates. The score is linear in the seed's means, so the mean over
-seeds is exactly the table's CS; its interval comes from the cells' bootstrap replicates.
-Aggregates over scenarios (per model): the mean of the per-scenario scores, and the
-interquartile mean (IQM) of all (scenario, seed) scores, as rliable reports. Their intervals,
-and the probability of improvement averaged over scenarios, resample whole seeds: one policy's
-scores correlate across scenarios (r 0.69 for M0's seeds, 0.87 for M4's), so the stratified
-bootstrap, which draws each scenario's seeds apart, gives intervals too narrow (69 % coverage
-at 10 seeds in tests/test_whole_seed_coverage.py, against 94 % resampling whole seeds).
+A seed's normalised score in a scenario is the paper's composite score (eq. 2) of that seed's
+means, with the scenario's normalisers fixed to the mean over the compared models of the table's
+estimates: linear in the seed's means, so its mean over seeds is the table's CS, and its interval
+comes from the cells' bootstrap replicates. Aggregates over scenarios (per model): the mean of the
+per-scenario scores and rliable's interquartile mean (IQM) of all (scenario, seed) scores. They and
+the probability of improvement averaged over scenarios resample whole seeds, since one policy's
+scores correlate across scenarios (r 0.69 for M0's seeds, 0.87 for M4's): docs/concepts.md,
+"Intervals pooled over scenarios".
 """
 
 from __future__ import annotations
@@ -60,9 +58,8 @@ def composite_intervals(cell_list: list[Cell], composite: pd.DataFrame, level: f
         lo = hi = np.nan
         if c.scenario in weights and np.isfinite(value):
             reps = _seed_scores(c.replicates, weights[c.scenario])  # [B, S]
-            lo, hi = bs.percentile_interval(bs.mean_over_seeds(reps[..., None])[..., 0], level)
-        records.append({"scenario": c.scenario, "model": c.model, CS: value, "ci_low": float(lo),
-                        "ci_high": float(hi)})
+            lo, hi = bs.percentile_interval(bs.mean_over_seeds(reps, -1), level)
+        records.append((c.scenario, c.model, value, float(lo), float(hi)))
     return pd.DataFrame(records, columns=["scenario", "model", CS, "ci_low", "ci_high"])
 
 
@@ -81,28 +78,20 @@ def aggregate_scores(cell_list: list[Cell], composite: pd.DataFrame, models: lis
         if not mine:
             continue
         points = [_seed_scores(c.seed_means(), weights[c.scenario]) for c in mine]  # [S] each
-        reps = _whole_seed_scores(mine, weights, n_boot)  # [B, U] each
+        # [B, U] each: the union of its seeds, the same drawn in every scenario, their simulations per cell
+        reps = bs.whole_seed_replicates([(c.seeds, c.groups) for c in mine], n_boot, bs.rng_for("whole-seed", model),
+                                        [bs.rng_for("whole-seed", c.scenario, model) for c in mine])
+        reps = [_seed_scores(r, weights[c.scenario]) for c, r in zip(mine, reps, strict=True)]
         runs = np.concatenate(points)
         stats = {
-            "mean": (np.mean([p.mean() for p in points]),
-                     np.mean([bs.mean_over_seeds(r[..., None])[..., 0] for r in reps], axis=0)),
+            "mean": (np.mean([p.mean() for p in points]), np.mean([bs.mean_over_seeds(r, -1) for r in reps], axis=0)),
             "IQM": (bs.iqm(runs), bs.iqm(np.concatenate(reps, axis=-1))),
         }
-        wide = bs.expanded_level(level, reps[0].shape[-1])
+        n = reps[0].shape[-1]
         for name, (value, samples) in stats.items():
-            lo, hi = bs.percentile_interval(samples, wide) if reps[0].shape[-1] > 1 else (math.nan, math.nan)
-            records.append({"model": model, "statistic": name, "value": float(value), "ci_low": float(lo),
-                            "ci_high": float(hi), "n_scenarios": len(mine), "n_runs": len(runs)})
+            records.append((model, name, float(value), *_interval(samples, bs.expanded_level(level, n), n), len(mine),
+                            len(runs)))
     return pd.DataFrame(records, columns=AGGREGATE_COLUMNS)
-
-
-def _whole_seed_scores(mine: list[Cell], weights: dict[str, np.ndarray], n_boot: int) -> list[np.ndarray]:
-    """Per cell of one model, [B, U] replicate scores of the union of its seeds, the same seeds
-    drawn in every scenario (the simulations within a seed drawn per cell)."""
-    model = mine[0].model
-    reps = bs.whole_seed_replicates([(c.seeds, c.groups) for c in mine], n_boot, bs.rng_for("whole-seed", model),
-                                    [bs.rng_for("whole-seed", c.scenario, model) for c in mine])
-    return [_seed_scores(r, weights[c.scenario]) for c, r in zip(mine, reps, strict=True)]
 
 
 def _compared(rows: pd.DataFrame, models: list[str], reference: str | None, trim: bool) -> tuple[pd.DataFrame, str]:
@@ -124,24 +113,17 @@ def improvement(rows: pd.DataFrame, models: list[str], *, reference: str | None 
     simulations independently. Reference: M0, or the first model when M0 is absent.
     """
     rows, reference = _compared(rows, models, reference, trim)
+    groups = _seed_groups(rows, metric)
     records = []
     for scenario in scenario_order(rows):
-        sc = rows[rows["scenario"] == scenario]
-        ref = _seed_groups(sc[sc["model"] == reference], metric)[1]
-        if not ref:
-            continue
         for model in models:
-            other = _seed_groups(sc[sc["model"] == model], metric)[1]
-            if model == reference or not other:
+            if model == reference or (scenario, reference) not in groups or (scenario, model) not in groups:
                 continue
-            p = bs.probability_of_improvement(ref, other)
+            ref, other = groups[(scenario, reference)][1], groups[(scenario, model)][1]
             samples = bs.bootstrap_improvement(ref, other, n_boot, bs.rng_for("poi", scenario, reference, model,
                                                                               metric, trim))
-            # one seed a side: no seed to resample, so no interval (a simulations-only width is not one)
-            lo, hi = bs.percentile_interval(samples, level) if min(len(ref), len(other)) > 1 else (math.nan, math.nan)
-            records.append({"scenario": scenario, "reference": reference, "model": model, "metric": metric,
-                            "probability": p, "ci_low": float(lo), "ci_high": float(hi),
-                            "n_seeds_reference": len(ref), "n_seeds_model": len(other)})
+            records.append((scenario, reference, model, metric, bs.probability_of_improvement(ref, other),
+                            *_interval(samples, level, min(len(ref), len(other))), len(ref), len(other)))
     return pd.DataFrame(records, columns=IMPROVEMENT_COLUMNS)
 
 
@@ -154,13 +136,11 @@ def improvement_overall(rows: pd.DataFrame, models: list[str], *, reference: str
     each model's seeds. The level is widened for the smaller of the two seed counts.
     """
     rows, reference = _compared(rows, models, reference, trim)
-    scenarios = scenario_order(rows)
+    groups = _seed_groups(rows, metric)
     records = []
     for model in models:
-        pairs = [(_seed_groups(rows[(rows["scenario"] == s) & (rows["model"] == reference)], metric),
-                  _seed_groups(rows[(rows["scenario"] == s) & (rows["model"] == model)], metric))
-                 for s in scenarios]
-        pairs = [(r, o) for r, o in pairs if r[0] and o[0]]
+        pairs = [(groups[(s, reference)], groups[(s, model)]) for s in scenario_order(rows)
+                 if (s, reference) in groups and (s, model) in groups]
         if model == reference or not pairs:
             continue
         seeds_ref, ref = bs.whole_seed_groups([r for r, _ in pairs])
@@ -172,26 +152,33 @@ def improvement_overall(rows: pd.DataFrame, models: list[str], *, reference: str
         samples = np.mean([bs.bootstrap_improvement(x, y, n_boot, rng, picks)
                            for x, y in zip(ref, other, strict=True)], axis=0)
         n = min(len(seeds_ref), len(seeds_other))
-        lo, hi = bs.percentile_interval(samples, bs.expanded_level(level, n)) if n > 1 else (math.nan, math.nan)
-        records.append({"scenario": OVERALL, "reference": reference, "model": model, "metric": metric,
-                        "probability": float(p), "ci_low": float(lo), "ci_high": float(hi),
-                        "n_seeds_reference": len(seeds_ref), "n_seeds_model": len(seeds_other)})
+        records.append((OVERALL, reference, model, metric, float(p), *_interval(samples, bs.expanded_level(level, n), n),
+                        len(seeds_ref), len(seeds_other)))
     return pd.DataFrame(records, columns=IMPROVEMENT_COLUMNS)
 
 
-def _seed_groups(rows: pd.DataFrame, metric: str) -> tuple[list, list[np.ndarray]]:
-    """Per seed (ascending) with a finite value, its seed and its finite values of `metric`
-    as an [n, 1] array."""
+def _interval(samples: np.ndarray, level: float, n_seeds: int) -> tuple[float, float]:
+    """The percentile interval; none (NaN) from one seed, which has no seed to resample (a
+    simulations-only width is not one)."""
+    if n_seeds < 2:
+        return math.nan, math.nan
+    lo, hi = bs.percentile_interval(samples, level)
+    return float(lo), float(hi)
+
+
+def _seed_groups(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str], tuple[list, list[np.ndarray]]]:
+    """(scenario, model) -> its seeds (ascending) with a finite value of `metric`, and per seed
+    those values as an [n, 1] array (in simulation order)."""
+    out: dict[tuple[str, str], tuple[list, list[np.ndarray]]] = {}
     ordered = rows.sort_values(["seed", "simulation"], kind="stable")
-    seeds, out = [], []
-    for seed, g in ordered.groupby("seed", sort=True):
+    for (scenario, model, seed), g in ordered.groupby(["scenario", "model", "seed"], sort=True):
         v = g[metric].to_numpy(float)
         v = v[np.isfinite(v)]
         if len(v):
+            seeds, values = out.setdefault((scenario, model), ([], []))
             seeds.append(seed)
-            out.append(v[:, None])
-    return seeds, out
-
+            values.append(v[:, None])
+    return out
 
 
 def _interval_or_dash(value: float, lo: float, hi: float, digits: int) -> str:

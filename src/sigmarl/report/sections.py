@@ -13,6 +13,7 @@ import pandas as pd
 
 from sigmarl.metrics import BENCHMARK, CS, HEADLINE, in_table
 from sigmarl.report import scores, tables
+from sigmarl.report import seeds as per_seed
 from sigmarl.report.cells import cells, composite_scores, scenario_order, summarise, trim_collisions
 from sigmarl.report.compare import verdicts
 from sigmarl.report.compare.curves import (
@@ -24,7 +25,6 @@ from sigmarl.report.compare.paper_policies import explain, policy_markdown, poli
 from sigmarl.report.compare.replication import PAPERS_WAY, replication_markdown, replication_table
 from sigmarl.report.draft import Draft, Section
 from sigmarl.report.marl_eval import export_files, interval_data
-from sigmarl.report.seeds import per_seed
 from sigmarl.report.study import caption, provenance_markdown, reward_differs, study_markdown
 from sigmarl.report.training import paper_last_rewards, training_markdown, training_summary
 

@@ -16,6 +16,16 @@ LAST = 25  # iterations averaged for the "final" reward (the curves are noisy pe
 COLUMNS = ["model", "seed", "iterations", "compute_min", "reward_last", "reward_best", "reward_complete_last"]
 
 
+def seed_curves(curves: pd.DataFrame | None) -> dict[tuple[str, int], pd.DataFrame]:
+    """Each (model, seed)'s curve, seeds ascending within a model (a curve without seeds is seed 0's)."""
+    if curves is None or not len(curves):
+        return {}
+    c = curves.assign(model=curves["model"].astype(str))
+    if "seed" not in c.columns:
+        c = c.assign(seed=0)
+    return {(model, int(seed)): g for (model, seed), g in c.groupby(["model", "seed"], sort=True)}
+
+
 def training_summary(curves: pd.DataFrame, models: list[str]) -> pd.DataFrame:
     """One row per (model, seed) of `curves` (model, seed, iteration, reward[, seconds]).
 
@@ -25,15 +35,13 @@ def training_summary(curves: pd.DataFrame, models: list[str]) -> pd.DataFrame:
     paper's definition, estimated (`episode_reward_mean_complete`; NaN for a run without it).
     """
     rows = []
+    by_seed = seed_curves(curves)
     for model in models:
-        c = curves[curves["model"].astype(str) == model]
-        if "seed" not in c.columns:
-            c = c.assign(seed=0)
-        for seed, g in c.groupby("seed", sort=True):
-            _check_curve(g, model, seed)
-            g = g.sort_values("iteration", kind="stable")
+        for seed in [s for m, s in by_seed if m == model]:
+            _check_curve(by_seed[(model, seed)], model, seed)
+            g = by_seed[(model, seed)].sort_values("iteration", kind="stable")
             seconds = g["seconds"].sum(min_count=1) if "seconds" in g.columns else float("nan")
-            rows.append({"model": model, "seed": int(seed), "iterations": int(g["iteration"].max()),
+            rows.append({"model": model, "seed": seed, "iterations": int(g["iteration"].max()),
                          "compute_min": seconds / 60, "reward_last": g["reward"].tail(LAST).mean(),
                          "reward_best": g["reward"].max(),
                          "reward_complete_last": g["reward_complete"].tail(LAST).mean()

@@ -1,13 +1,13 @@
 """Seed-aware statistics: two-level (seeds, then simulations) bootstrap, probability of
 improvement, interquartile mean, performance profiles, variance components, t intervals.
 
-Simulations of one seed share that seed's policy, so every estimate weighs the seeds equally
-(the mean over seeds of each seed's mean over simulations), and its interval is the percentile
-interval of a two-level bootstrap: each replicate draws the seeds with replacement, then each
-drawn seed's simulations. Not rliable (its 1.2.0 fails at import with our pandas 3, pulls ~100 MB
-of dependencies, and resamples runs only) nor scipy.stats.bootstrap (flat samples, no nesting;
-the tests use it as a check of the one-seed case). Every bootstrap draws from a generator seeded
-from BOOT_SEED and the cell's name, so a cell's interval does not depend on the other cells.
+Simulations of one seed share its policy, so every estimate weighs the seeds equally (the mean
+over seeds of each seed's mean over simulations), and its interval is the percentile interval of
+a two-level bootstrap: each replicate draws the seeds with replacement, then each drawn seed's
+simulations. Hand-written: scipy.stats.bootstrap resamples flat samples (the tests use it for the
+one-seed case), and rliable (1.2.0 fails at import with pandas 3) resamples runs only. Every
+bootstrap draws from a generator seeded from BOOT_SEED and the cell's name, so a cell's interval
+does not depend on the other cells. Pooling over scenarios: docs/concepts.md.
 """
 
 from __future__ import annotations
@@ -41,19 +41,21 @@ def padded(groups: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return out, lengths
 
 
+def mean_over_seeds(values: np.ndarray, axis: int = -2) -> np.ndarray:
+    """Mean over `axis` (default: the seed slots) of the finite values; NaN where none is."""
+    finite = np.isfinite(values)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(finite, values, 0.0).sum(axis) / finite.sum(axis)
+
+
 def seed_means(groups: Sequence[np.ndarray]) -> np.ndarray:
     """[S, K]: each seed's mean over its simulations, NaNs ignored (NaN where none is finite)."""
-    values, _ = padded(groups)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.nansum(values, 1) / np.isfinite(values).sum(1)
+    return mean_over_seeds(padded(groups)[0], 1)
 
 
 def point_estimate(groups: Sequence[np.ndarray]) -> np.ndarray:
     """[K]: the mean over seeds of the seeds' means (seeds with no finite value skipped)."""
-    means = seed_means(groups)
-    finite = np.isfinite(means)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(finite, means, 0.0).sum(0) / finite.sum(0)
+    return mean_over_seeds(seed_means(groups), 0)
 
 
 def resample(
@@ -79,23 +81,13 @@ def replicate_means(groups: Sequence[np.ndarray], n_boot: int, rng: np.random.Ge
                     pick: np.ndarray | None = None) -> np.ndarray:
     """[B, S, K]: per replicate, the drawn seeds' means over their drawn simulations."""
     draws, valid = resample(groups, n_boot, rng, pick)
-    finite = np.isfinite(draws) & valid[..., None]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(finite, draws, 0.0).sum(2) / finite.sum(2)
-
-
-def mean_over_seeds(per_seed: np.ndarray) -> np.ndarray:
-    """Mean over axis -2 (seed slots) ignoring NaN seeds; NaN where none is finite."""
-    finite = np.isfinite(per_seed)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(finite, per_seed, 0.0).sum(-2) / finite.sum(-2)
+    return mean_over_seeds(np.where(valid[..., None], draws, math.nan), 2)
 
 
 def percentile_interval(samples: np.ndarray, level: float = LEVEL) -> tuple[np.ndarray, np.ndarray]:
     """Percentile interval over axis 0, NaN replicates ignored."""
     alpha = (1 - level) / 2
-    lo, hi = np.nanquantile(samples, [alpha, 1 - alpha], axis=0)
-    return lo, hi
+    return tuple(np.nanquantile(samples, [alpha, 1 - alpha], axis=0))
 
 
 def whole_seed_groups(per_scenario: Sequence[tuple[list, list[np.ndarray]]]) -> tuple[list, list[list]]:
@@ -134,7 +126,7 @@ def expanded_level(level: float, n: int) -> float:
     (tests/test_whole_seed_coverage.py: 94 % at 10 seeds)."""
     if n < 2:
         return level
-    z = math.sqrt(n / (n - 1)) * stats.t.ppf(0.5 + level / 2, n - 1)
+    z = math.sqrt(n / (n - 1)) * t_critical(n - 1, level)
     return float(1 - 2 * stats.norm.sf(z))
 
 
@@ -198,14 +190,9 @@ def _compare(hx: np.ndarray, hy: np.ndarray) -> np.ndarray:
 
 
 def iqm(values: np.ndarray, axis: int = -1) -> np.ndarray:
-    """Interquartile mean: the mean after cutting floor(n/4) values from each end (as
-    scipy.stats.trim_mean(values, 0.25) and rliable do); NaN where a value is NaN (a bootstrap
-    replicate that drew no finite value, which the percentile interval then skips)."""
-    has_nan = np.isnan(values).any(axis=axis)
-    values = np.sort(values, axis=axis)
-    n = values.shape[axis]
-    cut = n // 4
-    return np.where(has_nan, math.nan, np.take(values, np.arange(cut, n - cut), axis=axis).mean(axis=axis))
+    """Interquartile mean (scipy.stats.trim_mean(values, 0.25), as rliable's); NaN where a value
+    is NaN (a replicate that drew no finite value, which the percentile interval then skips)."""
+    return np.where(np.isnan(values).any(axis=axis), math.nan, stats.trim_mean(values, 0.25, axis=axis))
 
 
 # Performance profiles, as rliable draws them: a model's profile is the fraction of its simulations
@@ -321,24 +308,14 @@ def components(groups: Sequence[np.ndarray]) -> Components:
 
 def t_critical(df: float, level: float = 0.95) -> float:
     """The t with P(|T| < t) = level: the two-sided critical value for a `level` interval."""
-    if not df > 0:
-        raise ValueError(f"degrees of freedom must be positive, got {df}")
-    if not 0 < level < 1:
-        raise ValueError(f"confidence level must lie in (0, 1), got {level}")
-    return float(stats.t.ppf(0.5 + level / 2, df))
+    return float(stats.t.interval(level, df)[1])
 
 
 def mean_ci(values: Iterable[float], level: float = 0.95) -> tuple[float, float, float, int]:
-    """(mean, CI half-width, sample standard deviation, n) of the finite values.
-
-    The half-width is t_(n-1) · s / √n; NaN when fewer than two values make a spread.
-    """
-    xs = [float(v) for v in values if math.isfinite(float(v))]
-    n = len(xs)
-    if n == 0:
-        return math.nan, math.nan, math.nan, 0
-    mean = math.fsum(xs) / n
-    if n == 1:
-        return mean, math.nan, math.nan, 1
-    std = math.sqrt(math.fsum((x - mean) ** 2 for x in xs) / (n - 1))
-    return mean, t_critical(n - 1, level) * std / math.sqrt(n), std, n
+    """(mean, CI half-width t_(n-1) s / sqrt(n), sample standard deviation, n) of the finite
+    values; the half-width and the deviation NaN with fewer than two."""
+    x = np.asarray(list(values), float)
+    x = x[np.isfinite(x)]
+    if len(x) < 2:
+        return (float(x.mean()) if len(x) else math.nan), math.nan, math.nan, len(x)
+    return float(x.mean()), t_critical(len(x) - 1, level) * float(stats.sem(x)), float(x.std(ddof=1)), len(x)

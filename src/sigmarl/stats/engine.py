@@ -1,28 +1,17 @@
-"""The comparison engine: every comparison the report makes is a contrast of per-seed values,
+"""The comparison engine: every comparison of the report is a contrast of per-seed values,
 sum_i w_i mean(group_i) over independent groups (a model against its baseline: +1, -1; an
-interaction (x - bx) - (y - by): +1, -1, -1, +1; a curve window against its reference), decided
-by one test, with one interval and one seeds-needed rule. Its null and the reason for it:
-docs/concepts.md, "One test".
+interaction: +1, -1, -1, +1; a curve window against its reference), decided by one test, with
+one interval and one seeds-needed rule. Its null, its worlds and why: docs/concepts.md, "One test".
 
-The test: Welch's t, sqrt(sum_i w_i^2 s_i^2 / n_i) its standard error, referred to a studentized
-bootstrap in which each group is resampled from its own seeds only. For a null value c, worlds
-where the null holds are built from the seeds, and p is the largest of theirs:
-- shifted: every group centred on its own mean (each keeps its spread and shape);
-- scaled (two groups): the first multiplied so that its mean is the second's plus c (skipped
-  where that factor is not positive);
-- pooled (two groups): the first moved by c, the two pooled and split at random (a studentized
-  permutation test, exact where the seeds are exchangeable).
-In each world t* = (contrast* - c) / se*; one-sided p of "greater" (1 + #{t* >= t_obs}) /
-(1 + draws), "less" mirrored, two-sided twice the smaller (capped at 1). One set of draws serves
-every null and world.
-
-Draws: from a fixed seed, in blocks of `BLOCK`, until every p's Monte Carlo error
-sqrt(p (1 - p) / draws) is under `MC_ERROR`, or the p lies `FAR` such errors above the largest
-level it is compared with (it decides nothing there; the record's `mc_error` says how far it may
-move), at most `MAX_DRAWS`. The interval is the shifted world's bootstrap-t. A group with fewer
-than 2 seeds leaves the contrast undecidable (p-values and interval NaN: "–", "undecided").
-scipy's `permutation_test` and `bootstrap` resample pooled or observed samples, not each group
-from its own seeds under a null, so they are not used here (the tests use them where they agree).
+Welch's t, sqrt(sum_i w_i^2 s_i^2 / n_i) its standard error, referred to a studentized bootstrap
+in worlds where the null value c holds: shifted (every group centred on its own mean), scaled
+and pooled (two groups: the first multiplied onto the second's mean plus c, where that factor is
+positive; the first moved by c, the two pooled and split at random). p is the largest of the
+worlds'; one-sided p of "greater" is (1 + #{t* >= t_obs}) / (1 + draws), "less" mirrored,
+two-sided twice the smaller. Draws come from SEED in blocks until each p is settled (`_settled`).
+The interval is the shifted world's bootstrap-t; a group with fewer than 2 seeds leaves the
+contrast undecidable (NaN). Hand-written because scipy's `permutation_test` and `bootstrap`
+resample pooled or observed samples, never each group from its own seeds under a null.
 
 Also here: Welch's record (`Test`), Holm's correction, the verdict rule, power and seeds needed.
 """
@@ -216,19 +205,8 @@ def _scale_factor(means: Sequence[float], weights: Sequence[float], value: float
     return factor if math.isfinite(factor) and factor > 0 else None
 
 
-def _p(count_greater: int, count_less: int, draws: int, alternative: str) -> float:
-    greater = (1 + count_greater) / (1 + draws)
-    less = (1 + count_less) / (1 + draws)
-    if alternative == "greater":
-        return greater
-    if alternative == "less":
-        return less
-    return min(1.0, 2 * min(greater, less))
-
-
 def compare(groups: Sequence[Sequence[float]], weights: Sequence[float], nulls: Mapping[str, Null],
-            level: float = 0.95, seed: int = SEED, draws: int | None = None, decides: float | None = 0.05
-            ) -> Record:
+            level: float = 0.95, draws: int | None = None, decides: float | None = 0.05) -> Record:
     """Decide one contrast of per-seed values against each named null (see the module's text);
     `draws` fixes the number of resamples (a simulation of the level) instead of `MC_ERROR`;
     `decides`: the largest level the p-values are compared with (None: every p to MC_ERROR)."""
@@ -245,7 +223,8 @@ def compare(groups: Sequence[Sequence[float]], weights: Sequence[float], nulls: 
     if min(ns) < 2:
         return Record(estimate, math.nan, ns, math.nan, math.nan, {k: math.nan for k in nulls})
     se = math.sqrt(sum(wi * wi * float(g.var(ddof=1)) / len(g) for wi, g in zip(w, gs, strict=True)))
-    rng = np.random.default_rng(seed)
+    t_obs = {name: _t_obs(estimate, null.value, se) for name, null in nulls.items()}
+    rng = np.random.default_rng(SEED)
     counts: dict[tuple[str, str], list[int]] = {}
     shifted_t: list[np.ndarray] = []
     block = draws or BLOCK
@@ -254,12 +233,11 @@ def compare(groups: Sequence[Sequence[float]], weights: Sequence[float], nulls: 
         shifted, stars = _t_stars(gs, w, means, _moments(gs, rng, block), nulls)
         stars.update(_pooled_t_stars(gs, w, nulls, rng, block))
         shifted_t.append(shifted)
-        for key, t in stars.items():
-            t_obs = _t_obs(estimate, nulls[key[0]].value, se)
-            c = counts.setdefault(key, [0, 0])
-            tie = 1e-9 * max(1.0, abs(t_obs)) if math.isfinite(t_obs) else 0.0  # rounding is no difference
-            c[0] += int(np.count_nonzero(t >= t_obs - tie))
-            c[1] += int(np.count_nonzero(t <= t_obs + tie))
+        for (name, world), t in stars.items():
+            tie = 1e-9 * max(1.0, abs(t_obs[name])) if math.isfinite(t_obs[name]) else 0.0  # rounding is no difference
+            c = counts.setdefault((name, world), [0, 0])
+            c[0] += int(np.count_nonzero(t >= t_obs[name] - tie))
+            c[1] += int(np.count_nonzero(t <= t_obs[name] + tie))
         drawn += block
         p = _worst_p(counts, nulls, drawn)
         if draws or drawn >= MAX_DRAWS or all(_settled(x, drawn, decides) for x in p.values()):
@@ -275,10 +253,13 @@ def _t_obs(estimate: float, value: float, se: float) -> float:
 
 
 def _worst_p(counts: Mapping[tuple[str, str], list[int]], nulls: Mapping[str, Null], draws: int) -> dict[str, float]:
-    """Per null, the larger p of its worlds."""
+    """Per null, the larger p of its worlds: "greater" (1 + #{t* >= t_obs}) / (1 + draws), "less"
+    mirrored, two-sided twice the smaller of the two (capped at 1)."""
     p: dict[str, float] = {}
-    for (name, _), (greater, less) in counts.items():
-        p[name] = max(p.get(name, 0.0), _p(greater, less, draws, nulls[name].alternative))
+    for (name, _), (n_greater, n_less) in counts.items():
+        greater, less = (1 + n_greater) / (1 + draws), (1 + n_less) / (1 + draws)
+        one = {"greater": greater, "less": less}.get(nulls[name].alternative, min(1.0, 2 * min(greater, less)))
+        p[name] = max(p.get(name, 0.0), one)
     return {name: p[name] for name in nulls}
 
 

@@ -17,7 +17,8 @@ from scipy import stats
 from sigmarl.metrics import AS, CD, CR_AA, CR_AL, CR_TOTAL, label, scaled
 from sigmarl.report.cells import model_order, scenario_order
 from sigmarl.report.tables import p_text, signed
-from sigmarl.report.training import LAST
+from sigmarl.report.training import LAST, seed_curves
+from sigmarl.stats.bootstrap import t_critical
 
 RATES = [CR_TOTAL, CR_AA, CR_AL]
 MIN_SEEDS = 5  # fewer seeds than this give no useful rank correlation
@@ -42,43 +43,26 @@ def seed_table(rows: pd.DataFrame, curves: pd.DataFrame | None, models: list[str
     models = model_order(rows, models)
     scenarios = scenario_order(rows)
     chosen = rows[rows["model"].isin(models)]
-    keys = chosen[["model", "seed", "scenario"]]
-    # in the table's units (collision rates in %)
-    per_seed = pd.concat([keys, scaled(chosen)], axis=1).groupby(["model", "seed", "scenario"], sort=False)[
-        [*RATES, CD, AS]].mean().sort_index()  # sorted: `.loc[(model, seed)]` without a PerformanceWarning
-    by_seed = _curves_by_seed(curves)
+    # in the table's units (collision rates in %); (model, seed) x (metric, scenario)
+    wide = pd.concat([chosen[["model", "seed", "scenario"]], scaled(chosen)], axis=1).groupby(
+        ["model", "seed", "scenario"], sort=False)[[*RATES, CD, AS]].mean().unstack("scenario")
+    wide = wide.reindex(columns=pd.MultiIndex.from_product([[*RATES, CD, AS], scenarios])).sort_index()
+    by_seed = seed_curves(curves)
     records = []
     for model in models:
         for seed in sorted(rows.loc[rows["model"] == model, "seed"].unique()):
-            means = per_seed.loc[(model, seed)]
-            record: dict = {"model": model, "seed": int(seed)}
-            for rate in RATES:
-                for scenario in scenarios:
-                    record[f"{rate}_{scenario}"] = means[rate].get(scenario, float("nan"))
-            for scenario in scenarios:
-                record[f"{CD}_{scenario}"] = means[CD].get(scenario, float("nan"))
-            present = means.reindex(scenarios)
-            record[f"{CR_TOTAL}_worst"] = present[CR_TOTAL].max()
-            record[f"{AS}_min"], record[f"{AS}_max"] = present[AS].min(), present[AS].max()
-            record.update(_rewards(by_seed.get((model, int(seed)))))
-            records.append(record)
+            m = wide.loc[(model, seed)]
+            record = {"model": model, "seed": int(seed)}
+            record |= {f"{metric}_{s}": m[(metric, s)] for metric in [*RATES, CD] for s in scenarios}
+            record |= {f"{CR_TOTAL}_worst": m[CR_TOTAL].max(), f"{AS}_min": m[AS].min(), f"{AS}_max": m[AS].max()}
+            records.append(record | _rewards(by_seed.get((model, int(seed)))))
     return pd.DataFrame(records)
-
-
-def _curves_by_seed(curves: pd.DataFrame | None) -> dict[tuple[str, int], pd.DataFrame]:
-    """Each (model, seed)'s curve, split once (a curve without seeds is seed 0's)."""
-    if curves is None or not len(curves):
-        return {}
-    c = curves.assign(model=curves["model"].astype(str))
-    if "seed" not in c.columns:
-        c = c.assign(seed=0)
-    return {(model, int(seed)): g for (model, seed), g in c.groupby(["model", "seed"], sort=False)}
 
 
 def _rewards(c: pd.DataFrame | None) -> dict[str, float]:
     """The training length and the mean reward in each of `reward_windows` of one seed's curve."""
     if c is None:
-        return {f"reward_{i}": float("nan") for i in range(len(WINDOW_ENDS))} | {"iterations": float("nan")}
+        return {"iterations": float("nan")} | {f"reward_{i}": float("nan") for i in range(len(WINDOW_ENDS))}
     out = {"iterations": int(c["iteration"].max())}
     for i, (first, last) in enumerate(reward_windows(out["iterations"])):
         out[f"reward_{i}"] = c.loc[c["iteration"].between(first, last), "reward"].mean()
@@ -188,7 +172,7 @@ def prediction_table(seeds: pd.DataFrame, scenarios: list[str], level: float = L
             if n < 2:
                 continue
             mean, sd = float(x.mean()), float(x.std(ddof=1))
-            half = stats.t.ppf(0.5 + level / 2, n - 1) * sd * math.sqrt(1 + 1 / n)
+            half = t_critical(n - 1, level) * sd * math.sqrt(1 + 1 / n)
             records.append({"model": model, "scenario": scenario, "n_seeds": n, "mean": mean, "sd": sd,
                             "pi_low": max(0.0, mean - half), "pi_high": mean + half, "min": float(x.min()),
                             "max": float(x.max()), "range_coverage": (n - 1) / (n + 1)})

@@ -1,13 +1,9 @@
-"""Seeds: `sigmarl report --plan` (per comparison the verdict, the difference with the engine's
-interval, and the seeds per model the engine's rule needs for the study's margin δ), and
-`seeds=auto`'s rounds (every comparison decided at this look by the group-sequential design
-below, and which variants get one more seed). From the folder's evaluation rows only.
-
-The plan's seed counts are the engine's seeds-needed rule (`engine.seeds_needed`: Welch's t with
-Satterthwaite's degrees of freedom and its noncentral distribution, at the seed means' variances),
-the rule the verdicts' own "seeds needed" uses, checked against the engine's test by simulation
-(tests/test_engine.py): to detect a true difference of δ (two-sided), and to show equivalence
-within ±δ (TOST) were the true difference 0, or the observed one.
+"""Seed plans: `sigmarl report --plan` (per comparison the verdict, the difference with the
+engine's interval, and the seeds per model the engine's seeds-needed rule asks for the study's
+margin δ: to detect a true difference of δ, and to show equivalence within ±δ were the true
+difference 0, or the observed one), and `seeds=auto`'s rounds (every comparison decided at this
+look by the group-sequential design below, and which variants get one more seed). From the
+folder's evaluation rows only. The rule and its limits: docs/concepts.md, "Seeds needed".
 """
 
 from __future__ import annotations
@@ -276,14 +272,12 @@ def next_round(
     """
     if not 2 <= n_start <= design.max_seeds:
         raise SigmarlError(f"the first look needs 2 to max_seeds ({design.max_seeds}) seeds per model, got {n_start}")
-    previous = dict(previous or {})
     comps = comparisons(rows, design)
     tests = [c.test for c in comps]
-    directions = [BY_NAME[c.metric].direction for c in comps]
     keys = [key(c.scenario, c.metric, c.variant) for c in comps]
+    earlier = [(previous or {}).get(k) for k in keys]
     verdicts, p_diff, p_eq, levels = sequential_decide(
-        tests, directions, [previous.get(k) for k in keys], n_start, design.max_seeds, design.alpha
-    )
+        tests, [BY_NAME[c.metric].direction for c in comps], earlier, n_start, design.max_seeds, design.alpha)
     frame = pd.DataFrame({
         "scenario": [c.scenario for c in comps], "metric": [c.metric for c in comps],
         "variant": [c.variant for c in comps], "n_variant": [t.n_variant for t in tests],
@@ -295,14 +289,13 @@ def next_round(
     reasons = []
     seeds = rows.groupby("model")["seed"].nunique().to_dict()
     add: dict[str, int] = {}
-    for k, c, v, t, p in zip(keys, comps, verdicts, tests, previous_list(previous, keys), strict=True):
+    for i, (c, v, t, p) in enumerate(zip(comps, verdicts, tests, earlier, strict=True)):
         where = f"{c.variant} vs {design.baseline_of(c.variant)}, {c.scenario}, {c.metric}"
-        if p:
+        if p and p != "undecided":
             continue
         if v != "undecided":
-            reasons.append(f"{where}: {v} at {t.n_variant}/{t.n_baseline} seeds "
-                           f"(difference {t.difference:+.4g}, Holm p {p_diff[keys.index(k)]:.3g}, "
-                           f"equivalence p {p_eq[keys.index(k)]:.3g}, nominal level {levels[keys.index(k)]:.3g})")
+            reasons.append(f"{where}: {v} at {t.n_variant}/{t.n_baseline} seeds (difference {t.difference:+.4g}, "
+                           f"Holm p {p_diff[i]:.3g}, equivalence p {p_eq[i]:.3g}, nominal level {levels[i]:.3g})")
         elif seeds.get(c.variant, 0) >= design.max_seeds:
             reasons.append(f"{where}: undecided at the cap of {design.max_seeds} seeds")
         else:
@@ -318,7 +311,3 @@ def next_round(
             reasons.append(f"{base}: one more seed ({seeds.get(base, 0) + 1}), as the baseline "
                            "of the undecided comparisons")
     return Round(frame, add, reasons, done=not add)
-
-
-def previous_list(previous: Mapping[str, str], keys: Sequence[str]) -> list[str | None]:
-    return [previous.get(k) if previous.get(k) not in (None, "undecided") else None for k in keys]
