@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from sigmarl.cli.report import publish, staged
 from sigmarl.errors import SigmarlError
 from sigmarl.report.build import BuildOptions, build_report
-from sigmarl.report.command import publish, staged
-from sigmarl.report.inputs import read_results
+from sigmarl.results.folders import read_results
 from sigmarl.stats import bootstrap as bs
 
 

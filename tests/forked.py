@@ -17,7 +17,7 @@ from pathlib import Path
 
 _context = None
 PRELOAD = ["forked", "sigmarl.cli", "sigmarl.sweep", "sigmarl.training.loop",
-           "sigmarl.evaluation.protocol", "sigmarl.report.command", "mlflow", "pandas"]
+           "sigmarl.evaluation.protocol", "sigmarl.cli.report", "mlflow", "pandas"]
 
 
 def _ctx():

@@ -51,7 +51,7 @@ def sweep_in(root: str, crash_at: str | None) -> None:
 def sweeps(tmp_path_factory):
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload([__name__, "sigmarl.cli", "sigmarl.sweep", "sigmarl.training.loop",
-                                "sigmarl.evaluation.protocol", "sigmarl.report.command"])
+                                "sigmarl.evaluation.protocol", "sigmarl.cli.report"])
 
     def run(root: Path, crash_at: str | None) -> int:
         proc = ctx.Process(target=sweep_in, args=(str(root), crash_at))

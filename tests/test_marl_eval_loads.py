@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sigmarl.report.inputs import read_results
 from sigmarl.report.marl_eval import export_files, marl_eval_data, seed_groups
+from sigmarl.results.folders import read_results
 
 processing = pytest.importorskip("marl_eval.utils.data_processing_utils")
 ROOT = Path(__file__).resolve().parents[1] / "results" / "paper-budget"

@@ -12,7 +12,7 @@ import pytest
 from sigmarl.report.build import build_report
 from sigmarl.report.compare.paper_policies import policy_table
 from sigmarl.report.draft import BuildOptions
-from sigmarl.report.inputs import imported_folder_beside, read_imported
+from sigmarl.results.folders import imported_folder_beside, read_imported
 
 ROOT = Path(__file__).resolve().parents[1]
 OBS = {"M0": "E,V,DA,DB,DC", "M5": "E,V,DA,DB"}

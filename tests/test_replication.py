@@ -161,7 +161,7 @@ def test_ranking_share_of_an_even_race_is_near_half():
 # ---- the published table ----
 
 def test_published_replication_is_the_committed_folders():
-    from sigmarl.report.inputs import read_results
+    from sigmarl.results.folders import read_results
 
     rows = read_results(ROOT / "results" / "paper-budget").rows
     table = replication_table(rows, ["M0", "M1", "M2", "M3", "M4", "M5"])

@@ -1,4 +1,4 @@
-"""A column is a config (`sigmarl.report.columns`): a run under a study variant's label whose
+"""A column is a config (`sigmarl.results.columns`): a run under a study variant's label whose
 training config is another (a quick-budget M0 evaluated into the paper study's experiment) is
 refused in one line naming both fingerprints and what differs, or left out with --partial and
 said so in the report; a newer evaluation of another config does not hide the declared one's."""

@@ -15,7 +15,7 @@ from mlflow import MlflowClient
 from sigmarl.cli import main
 from sigmarl.eval_key import RULES_REVISION
 from sigmarl.metrics import METRIC_COLUMNS
-from sigmarl.report.inputs import read_results
+from sigmarl.results.folders import read_results
 from sigmarl.scenarios import PAPER_SCENARIOS
 
 FIXTURE = Path(__file__).parent / "data" / "results"

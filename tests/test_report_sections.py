@@ -10,7 +10,7 @@ import pytest
 
 from sigmarl.report.build import SECTIONS, build_report
 from sigmarl.report.draft import BuildOptions, Draft, Section, UndeclaredFile, check_sections
-from sigmarl.report.inputs import read_imported, read_results
+from sigmarl.results.folders import read_imported, read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 

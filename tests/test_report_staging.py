@@ -9,7 +9,7 @@ def test_a_report_removes_the_staging_folders_killed_reports_left(tmp_path):
     import os
     import socket
 
-    from sigmarl.report.command import staged
+    from sigmarl.cli.report import staged
 
     out = tmp_path / "report"
     host = socket.gethostname()

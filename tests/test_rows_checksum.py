@@ -15,7 +15,7 @@ from cli_errors import one_line_exit_2
 
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
-from sigmarl.report.inputs import read_results
+from sigmarl.results.folders import read_results
 
 FIXTURE = Path(__file__).parent / "data" / "results"
 

@@ -14,7 +14,7 @@ from mlflow import MlflowClient
 from sigmarl.compose import compose_config
 from sigmarl.eval_key import RULES_REVISION, eval_key, protocol, protocol_key
 from sigmarl.evaluation.protocol import rows_file_for
-from sigmarl.report.inputs import read_results
+from sigmarl.results.folders import read_results
 from sigmarl.tracking.records import load_evaluation_rows, log_evaluation
 
 FIXTURE = Path(__file__).parent / "data" / "results"

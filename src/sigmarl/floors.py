@@ -46,10 +46,13 @@ FLOORS: tuple[Floor, ...] = (
           ("sigmarl.compose",)),
     Floor("training", "MAPPO: networks, losses, the loop, checkpoints, metrics.csv", ("sigmarl.training",)),
     Floor("evaluation", "test-mode rollouts, the evaluation protocol, animations", ("sigmarl.evaluation",)),
-    Floor("sweep and report", "the multirun and the report, side by side",
+    Floor("results", "what a study left on disk, read without MLflow: results folders, their run folders' "
+          "rows and curves, the paper's policies' rows; which runs make each column and which are left out",
+          ("sigmarl.results",)),
+    Floor("sweep and report", "the multirun and the report (rows in, tables, verdicts and files out), side by side",
           ("sigmarl.sweep", "sigmarl.report")),
-    Floor("commands", "the command line and what only it drives: `seeds=auto`, shell completion, "
-          "Hydra's search-path plugin",
+    Floor("commands", "the command line and what only it drives: the report command (its sources, staging "
+          "and tracker run) and what it prints, `seeds=auto`, shell completion, Hydra's search-path plugin",
           ("sigmarl.cli", "sigmarl.__main__", "hydra_plugins.sigmarl_config_dirs")),
 )
 
@@ -59,8 +62,6 @@ UPWARD: dict[tuple[str, str], str] = {}
 # Inside the report (one room of the floors above), its groups in floors of their own, by the
 # same rule: a module imports from its own group's floor or one below.
 REPORT_FLOORS: tuple[Floor, ...] = (
-    Floor("inputs", "what a report is built from: run folders and the paper's policies' rows, which runs "
-          "make each column and which are left out", ("sigmarl.report.inputs", "sigmarl.report.columns")),
     Floor("table", "Table I: its cells and composite scores, the scores over scenarios, the table in its "
           "formats with its notes and the paper's figures, the study page, the training curves' summary",
           ("sigmarl.report.cells", "sigmarl.report.scores", "sigmarl.report.tables", "sigmarl.report.study",
@@ -72,9 +73,8 @@ REPORT_FLOORS: tuple[Floor, ...] = (
     Floor("exports", "figures and marl-eval's JSON", ("sigmarl.report.figures", "sigmarl.report.marl_eval")),
     Floor("seam", "`Section`, `Draft`, `BuildOptions`", ("sigmarl.report.draft",)),
     Floor("sections", "every group's sections", ("sigmarl.report.sections",)),
-    Floor("build and command", "`build_report` and its registry of sections, the command, the package's "
-          "own names (`__init__.py`)", ("sigmarl.report.build", "sigmarl.report.command", "sigmarl.report.console",
-          "sigmarl.report")),
+    Floor("build", "`build_report` and its registry of sections, the package's own names (`__init__.py`)",
+          ("sigmarl.report.build", "sigmarl.report")),
 )
 
 

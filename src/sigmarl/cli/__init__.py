@@ -156,7 +156,7 @@ def cmd_report(args: argparse.Namespace) -> None:
         raise SigmarlError(f"nothing to report: no MLflow store at {db}; run `sigmarl sweep` here first, "
                            "point tracking.tracking_uri=... at the study's store, or use --from FOLDER")
     # after the store's check (no store: no pandas); --models '' or --animations -5: one line
-    from sigmarl.report.command import ReportOptions, make_report, make_report_from_folder
+    from sigmarl.cli.report import ReportOptions, make_report, make_report_from_folder
 
     options = ReportOptions(latex=args.latex, trim=args.trim, compare_paper=args.compare_paper, models=models, ci=args.ci,
                             figures=not args.no_figures, animation_steps=args.animations, partial=args.partial,
@@ -170,7 +170,7 @@ def cmd_report(args: argparse.Namespace) -> None:
         report = make_report_from_folder([Path(s) for s in args.source], cfg, out_dir, options)
     else:
         report = make_report(cfg, out_dir, options)
-    from sigmarl.report.console import console_text
+    from sigmarl.cli.report_console import console_text
 
     print(console_text(report, verbose=args.verbose))  # short; --verbose: the table's text, its notes, ...
 

@@ -27,8 +27,8 @@ import pandas as pd
 from sigmarl.errors import SigmarlError
 from sigmarl.readers import read_json
 from sigmarl.report.compare.verdicts import design_of
-from sigmarl.report.inputs import RunFolder, rows_of
 from sigmarl.report.plan import first_decidable_look, key, next_round
+from sigmarl.results.folders import RunFolder, rows_of
 from sigmarl.run import Run, write_atomic
 from sigmarl.sweep import launch, plan_sweep
 

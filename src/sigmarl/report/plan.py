@@ -31,8 +31,8 @@ from sigmarl.report.compare.verdicts import (
     verdict_label,
     verdict_table,
 )
-from sigmarl.report.inputs import read_many, read_results
 from sigmarl.report.tables import signed
+from sigmarl.results.folders import read_many, read_results
 from sigmarl.stats.bootstrap import components
 from sigmarl.stats.engine import Test, holm, seeds_needed, verdict
 

@@ -226,7 +226,7 @@ def report_hint(plan: SweepPlan) -> str:
     from sigmarl.compose import compose_config
 
     # and the training settings every job shares: the report composes each column's config with
-    # them, and a column whose runs were trained otherwise is refused (sigmarl.report.columns)
+    # them, and a column whose runs were trained otherwise is refused (sigmarl.results.columns)
     keep = [o for o in plan.fixed
             if override_key(o).split(".")[0].lstrip("+~") in ("study", "tracking", "runs_root", *TRAINING_GROUPS)]
     if len(keep) < len(plan.fixed) and _where(compose_config(keep)) != _where(plan.config):

@@ -140,7 +140,7 @@ def load_evaluation_rows(client, experiment: str, protocol: str | None = None,
     frames = []
     # Keep the newest evaluation of each (model, seed, training config) so a re-evaluation
     # replaces the old one, and a run of another config under the same label does not hide the
-    # declared one's (the report chooses by fingerprint: sigmarl.report.columns)
+    # declared one's (the report chooses by fingerprint: sigmarl.results.columns)
     latest, others = {}, {}
     protocol = _study_protocol(runs, protocol) if protocol is not None else None
     for run in runs:

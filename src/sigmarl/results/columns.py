@@ -1,15 +1,10 @@
 """Which runs a report shows under each column, and which it leaves out.
 
-A column is a config: the runs a report shows under a study's variant are the runs of the
-training config that variant composes to (with the report's own overrides), never merely runs
-that carry its label. A run evaluated into the study's experiment under the label but trained
-otherwise (a quick-budget M0 in the paper study's store) is refused in one line naming both
-fingerprints and what differs, or, with --partial, left out with a note in the report.
-
-Every run of the study's variants without evaluation rows in the report is named as failed
-(with its error), trained but not evaluated, unfinished, or never run. A failed run, or a
-declared variant whose runs have no rows, ends the report in one line unless it is told to go
-on (`--partial`); then each is a note of the table.
+A column is a config, not a label (docs/concepts.md, Fingerprint): a run under a variant's label
+trained otherwise than the variant composes to is refused in one line, or left out with
+--partial. Every run of the study's variants without rows in the report is named (failed,
+not evaluated, unfinished, never run); a failed run, or a declared variant whose runs have no
+rows, ends the report unless --partial.
 """
 
 from __future__ import annotations
@@ -59,9 +54,9 @@ def check_columns(rows: pd.DataFrame, expected: dict[str, Config], partial: bool
 
     Each run's changes against its variant's composition are compared: runs whose changes are
     the ones every other column shares (a sweep's command line, e.g. ppo=smoke, that the report
-    was not given) are kept; a run whose changes
-    are its own (a quick-budget M0 beside the paper's M4, or two budgets in one column) is not
-    its variant. `recorded(run)` gives a run's training config from the row's `eval_run_id`."""
+    was not given) are kept; a run whose changes are its own (a quick-budget M0 beside the
+    paper's M4, or two budgets in one column) is not its variant. `recorded(run)` gives a run's
+    training config from the row's `eval_run_id`."""
     if "fingerprint" not in rows or not expected:
         return rows, []
     fp = rows["fingerprint"].fillna("").astype(str)
@@ -88,13 +83,11 @@ def check_columns(rows: pd.DataFrame, expected: dict[str, Config], partial: bool
         lines.append(f"{label} seed {seed} was trained with fingerprint {other}, not the variant's "
                      f"{cfg.fingerprint}{what}")
         bad |= (rows["model"].astype(str) == label) & (rows["seed"] == seed) & (fp == other)
-    notes = []
     if lines and not partial:
         more = f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""
         raise SigmarlError(f"{lines[0]}{more}: it is not that variant; report the study it was trained in, "
                            "give the same overrides it was trained with, or --partial to leave it out")
-    notes += [f"Left out: {line} (not this column's config)." for line in lines]
-    return rows[~bad].reset_index(drop=True), notes
+    return rows[~bad].reset_index(drop=True), [f"Left out: {line} (not this column's config)." for line in lines]
 
 
 def one_config_per_run(rows: pd.DataFrame, declared: Sequence[str] = ()) -> pd.DataFrame:

@@ -11,17 +11,18 @@ import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 from sigmarl.config import Config
 from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import protocol_key
 from sigmarl.readers import read_run_config
-from sigmarl.report import columns, inputs
 from sigmarl.report.build import BuildOptions, Report, build_report
 from sigmarl.report.cells import label_order
 from sigmarl.report.compare.verdicts import design_of
 from sigmarl.report.study import run_records
+from sigmarl.results import columns, folders
 from sigmarl.run import Run
 from sigmarl.scenarios import scenario, scenario_names
 from sigmarl.tracking import connect, open_tracker, records
@@ -65,26 +66,26 @@ def make_report(cfg: Config, out_dir: Path | None = None, options: ReportOptions
     check_baseline(cfg, options)
     tracker = open_tracker(cfg)  # checked before any work
     client = connect(cfg, write=False)  # the rows are read from MLflow whichever tracker logs
-    folders, where = _study_folders(cfg)
+    runs, where = _study_folders(cfg)
     lacking: list[str] = []  # seeds evaluated under other protocols only (one-off evaluations)
     try:
         rows = records.load_evaluation_rows(client, experiment, _study_protocol(cfg, options), lacking)
     except SigmarlError as e:  # no rows at all: say what became of the study's runs
-        missing = columns.left_out(list(cfg.study.variants), set(), folders, where, declared=False)
+        missing = columns.left_out(list(cfg.study.variants), set(), runs, where, declared=False)
         raise SigmarlError(f"{e}; " + "; ".join(map(str, missing)) if missing else str(e)) from e
     rows = only_scenarios(rows, options.scenarios, experiment)
     _refuse_other_labels(rows, cfg, options)
     expected = columns.variant_configs(options.overrides, dict(cfg.study.variants), rows["model"].astype(str))
-    rows, wrong = columns.check_columns(rows, expected, options.partial,
-                                        lambda rid: records.evaluated_config(client, rid))
+    recorded = partial(records.evaluated_config, client)  # a run id -> its training config
+    rows, wrong = columns.check_columns(rows, expected, options.partial, recorded)
     rows = columns.one_config_per_run(rows, list(expected))
-    notes = [*wrong, *lacking, *_coverage(rows, cfg, options, folders, where)]
+    notes = [*wrong, *lacking, *_coverage(rows, cfg, options, runs, where)]
     curves = records.load_training_curves(client, experiment) if options.figures else None
     out_dir = out_dir or report_folder(experiment, cfg, options)
-    configs = _column_configs(rows, lambda rid: records.evaluated_config(client, rid), expected)
+    configs = _column_configs(rows, recorded, expected)
     report = _build(rows, curves if curves is not None and len(curves) else None, out_dir, cfg,
                     lambda: _mlflow_checkpoint(client, experiment, cfg.study.baseline), options, notes, configs,
-                    run_records(folders, rows))
+                    run_records(runs, rows))
     tracker.log_report(report.composite, report.paths.values(), {
         "evaluation_runs": ",".join(sorted(set(rows["eval_run_id"]))) if "eval_run_id" in rows else "",
         **what_it_reports(report, cfg, options),
@@ -128,7 +129,7 @@ def what_it_reports(report: Report, cfg: Config, options: ReportOptions) -> dict
 def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path | None = None,
                             options: ReportOptions = ReportOptions()) -> Report:
     """The report of a results folder, or of several (a study whose variants live in different
-    folders, e.g. reused runs of another study), `sigmarl.report.inputs`: no MLflow reads, no
+    folders, e.g. reused runs of another study), `sigmarl.results.folders`: no MLflow reads, no
     training.
 
     Logged as a report run to the tracker (experiment `cfg.tracking.experiment`).
@@ -136,21 +137,21 @@ def make_report_from_folder(root: Path | list[Path], cfg: Config, out_dir: Path 
     """
     check_baseline(cfg, options)
     roots = [Path(r) for r in (root if isinstance(root, list) else [root])]
-    results = inputs.read_many(roots, options.partial)
+    results = folders.read_many(roots, options.partial)
     results.rows = only_scenarios(results.rows, options.scenarios, ", ".join(map(str, roots)))
     root = roots[0]
     out_dir = out_dir or report_folder(roots[0].resolve().name if len(roots) == 1 else cfg.study.name, cfg, options)
     curves = results.curves if len(results.curves) else None  # read anyway: training.md needs them
-    folders = [(r.label, r.seed, r.path) for r in results.runs]
+    runs = [(r.label, r.seed, r.path) for r in results.runs]
     # the folders' runs without rows are in the notes already (read_results): only variants never run added
-    notes = _coverage(results.rows, cfg, options, folders, ", ".join(map(str, roots)), runs_noted=True)
+    notes = _coverage(results.rows, cfg, options, runs, ", ".join(map(str, roots)), runs_noted=True)
     tracker = open_tracker(cfg)  # checked before any work
     configs = _folder_configs(results.runs)
-    beside = inputs.imported_folder_beside(root) if options.compare_paper else None  # the paper's own policies
+    beside = folders.imported_folder_beside(root) if options.compare_paper else None  # the paper's own policies
     report = _build(results.rows, curves, out_dir, cfg, lambda: _folder_checkpoint(results, root, cfg),
                     options, extra_notes=[*results.notes, *notes], configs=configs,
-                    provenance=run_records(folders, results.rows),
-                    imported=inputs.read_imported(beside) if beside is not None else None)
+                    provenance=run_records(runs, results.rows),
+                    imported=folders.read_imported(beside) if beside is not None else None)
     tracker.log_report(report.composite, report.paths.values(),
                        {"source": ",".join(str(r.resolve()) for r in roots), **what_it_reports(report, cfg, options)},
                        source=",".join(str(r) for r in roots))
@@ -247,16 +248,16 @@ def _defaults() -> Config:
     return compose_config([])
 
 
-def _coverage(rows, cfg: Config, options: ReportOptions, folders, where: str, runs_noted: bool = False) -> list[str]:
+def _coverage(rows, cfg: Config, options: ReportOptions, runs, where: str, runs_noted: bool = False) -> list[str]:
     """Notes of the study's runs the report leaves out; refused in one line where a run failed
-    or a declared variant has no rows (`coverage.check`), unless options.partial. Checked against
+    or a declared variant has no rows (`columns.check`), unless options.partial. Checked against
     the study's variants where the rows hold any of them, else against every label present."""
     present = list(dict.fromkeys(rows["model"].astype(str)))
     declared = options.models or list(cfg.study.variants)
     claimed = any(m in declared for m in present)
-    variants = declared if claimed else list(dict.fromkeys([*present, *(label for label, _, _ in folders)]))
+    variants = declared if claimed else list(dict.fromkeys([*present, *(label for label, _, _ in runs)]))
     reported = set(zip(rows["model"].astype(str), rows["seed"].astype(int), strict=True))
-    missing = columns.left_out(variants, reported, folders, where, declared=claimed)
+    missing = columns.left_out(variants, reported, runs, where, declared=claimed)
     columns.check(declared if claimed else [], reported, missing, cfg.study.name, options.partial)
     return [f"Left out: {m}." for m in missing if not runs_noted or m.seed is None]
 
@@ -270,7 +271,7 @@ def _study_folders(cfg: Config) -> tuple[list[tuple[str, int, Path]], str]:
     found = []
     for root in roots:
         try:
-            found += [(r.label, r.seed, r.path) for r in inputs.run_folders(root)]
+            found += [(r.label, r.seed, r.path) for r in folders.run_folders(root)]
         except SigmarlError:  # no folder there, or none inside it
             pass
     return found, ", ".join(map(str, roots))
@@ -291,7 +292,7 @@ def _folder_checkpoint(results, root: Path, cfg: Config) -> Path:
     from sigmarl.evaluation.protocol import checkpoint_name
 
     baseline = cfg.study.baseline
-    path = inputs.checkpoint_of(results.runs, baseline, checkpoint_name(cfg.eval.checkpoint))
+    path = folders.checkpoint_of(results.runs, baseline, checkpoint_name(cfg.eval.checkpoint))
     if path is None:
         raise SigmarlError(f"animations need {baseline}'s {checkpoint_name(cfg.eval.checkpoint)} in {root}; "
                            "none found")

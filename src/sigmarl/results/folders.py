@@ -1,19 +1,11 @@
-"""What a report reads from disk (no MLflow): a results folder's evaluation rows and training
-curves, and the rows of policies trained by the paper's own code.
+"""A results folder read from disk (no MLflow): its run folders, `<root>/<label>/seed<k>/` as a
+sweep writes them (`runs_root=...`; their files in docs/reference/outputs.md), their evaluation
+rows and training curves, and the rows of the paper's own policies.
 
-A results folder, as a sweep writes it (`runs_root=...`) and as results/paper-budget/ is committed:
-
-    <root>/<model label>/seed<k>/
-        config.yaml          the resolved training config
-        metrics.csv          per-iteration training metrics: `iteration` + metric columns
-        evaluation_rows.csv  per-simulation rows (model, obs, seed, rules, scenario, simulation + the metrics)
-        best.pt, final.pt    checkpoints (read only for animations)
-
-A run folder without evaluation rows (training unfinished) is skipped and named in the notes;
-without metrics.csv it just has no training curve. The paper's own policies' rows
-(`sigmarl evaluate paper:M<k>`) lie in `<label>/<rules>/evaluation_rows.csv` under the folder
-`paper-policies` beside the study's; they are read for the `paper_policies` section only, never
-pooled with a study's rows.
+A run folder without evaluation rows (training unfinished) is left out and named in the notes;
+without metrics.csv it has no training curve. The paper's policies' rows (`sigmarl evaluate
+paper:M<k>`, in `paper-policies/<label>/<rules>/` beside the study's folder) are read for the
+`paper_policies` section only, never pooled with a study's rows.
 """
 
 from __future__ import annotations
@@ -32,7 +24,7 @@ from sigmarl.errors import SigmarlError
 from sigmarl.eval_key import RULES_REVISION
 from sigmarl.params import VEHICLE
 from sigmarl.readers import read_run_config, read_training_curve
-from sigmarl.report.columns import run_state
+from sigmarl.results.columns import run_state
 from sigmarl.rows import check_rows, note_protocol
 from sigmarl.run import COMPLETE_REWARD_COLUMN, REWARD_COLUMN, ROWS_FILE, Run
 
