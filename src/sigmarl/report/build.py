@@ -1,10 +1,7 @@
 """`build_report`: evaluation rows in, the report's files out, one section after another.
 
-`SECTIONS` is the registry: each `Section` (`report.draft`) is declared in `report.sections`,
-and a new one is its declaration and one line here.
-A section reads what the ones before it left on the draft, so the order is the order they
-depend on: the table before the statistics and the findings, the verdicts before the
-findings, the training summary before the curve verdicts.
+`SECTIONS` is the registry: a new section is its `Section` (`report.sections`) and one line
+here, in the order they depend on (a section reads what the ones before it left on the draft).
 """
 
 from __future__ import annotations
@@ -18,22 +15,18 @@ from sigmarl.report import sections as sec
 from sigmarl.report.cells import model_order, validate_rows
 from sigmarl.report.draft import BuildOptions, Draft, Section, check_sections
 
-# What build_report returns: the draft its sections finished (the Markdown to print, the frames
-# behind it, the files written).
-Report = Draft
+Report = Draft  # what build_report returns: the Markdown to print, the frames behind it, the files written
 
 
 def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame | None = None,
                  sections: list[Section] | None = None) -> Report:
-    """Aggregate evaluation rows into the paper's Table I and the report's other files in
-    `options.out_dir`, one section after another (`sections`, default `SECTIONS`).
+    """Table I and the report's other files in `options.out_dir` from evaluation rows, each
+    section (`sections`, default `SECTIONS`) built where its `needs` holds.
 
     rows: one per (model, obs, seed, scenario, simulation) with CR_AA, CR_AL, CR_total
-    (fractions of steps), CD (cm) and AS (m/s); curves: (model, iteration, reward[, seed]) for
-    the training summary, the curve verdicts and the training figures.
-
-    Estimates weigh seeds equally and intervals come from a two-level bootstrap (seeds, then
-    simulations; `sigmarl.stats.bootstrap`), so the same rows give byte-identical files.
+    (fractions of steps), CD (cm) and AS (m/s); curves: (model, iteration, reward[, seed]).
+    Estimates weigh seeds equally and intervals come from a seeded two-level bootstrap (seeds,
+    then simulations; `sigmarl.stats.bootstrap`), so the same rows give byte-identical files.
     """
     rows = validate_rows(rows)
     options = replace(options, out_dir=Path(options.out_dir))
@@ -42,7 +35,8 @@ def build_report(rows: pd.DataFrame, options: BuildOptions, curves: pd.DataFrame
     options.out_dir.mkdir(parents=True, exist_ok=True)
     for section in SECTIONS if sections is None else sections:
         draft.section = section
-        section.build(draft)
+        if section.needs is None or section.needs(draft):
+            section.build(draft)
     draft.section = None
     return draft
 

@@ -1,15 +1,6 @@
-"""Per-simulation evaluation rows -> Table I's cells: per (scenario, model, metric) estimates with
-95% intervals, and the paper's composite score per scenario.
-
-A cell's estimate is the mean over seeds of each seed's mean over simulations; its interval
-is a two-level bootstrap over seeds and their simulations (`sigmarl.stats.bootstrap`), so
-it reflects the seed-to-seed variation that pooled simulations would hide.
-
-The composite score (the paper's eq. 2) sums each composite metric (`metrics.COMPOSITE`) divided
-by its mean over the compared models, with its sign: CS_m = -CR_total,m / mean_j CR_total,j
-- CD_m / mean_j CD_j + AS_m / mean_j AS_j. Units cancel (percent or fraction, cm or paper units
-give the same score) but the score depends on which models are in the table. When a mean is
-zero the score has no meaning; we say so instead of dividing by zero.
+"""Per-simulation evaluation rows -> Table I's cells (per scenario, model and metric: the mean
+over seeds of each seed's mean, with a two-level bootstrap interval over seeds and their
+simulations, so seed-to-seed variation shows) and the paper's composite score per scenario.
 """
 
 from __future__ import annotations
@@ -144,14 +135,6 @@ class Cell:
         return bs.seed_means(self.groups)
 
 
-def seed_groups(rows: pd.DataFrame) -> tuple[list, list[np.ndarray]]:
-    """The seeds of one cell's rows (ascending) and their [n_sims, K] metric arrays."""
-    ordered = rows.sort_values(["seed", "simulation"], kind="stable")
-    values, keys = scaled(ordered).to_numpy(), ordered["seed"].to_numpy()
-    seeds = list(dict.fromkeys(ordered["seed"]))
-    return seeds, [values[keys == s] for s in seeds]
-
-
 def cells(rows: pd.DataFrame, models: list[str] | None = None, *, trim: bool = False,
           n_boot: int = bs.N_BOOT) -> list[Cell]:
     """Every (scenario, model) with rows, scenarios and models in report order."""
@@ -165,20 +148,22 @@ def cells(rows: pd.DataFrame, models: list[str] | None = None, *, trim: bool = F
             g = rows[(rows["scenario"] == scenario) & (rows["model"] == model)]
             if g.empty:
                 continue
-            seeds, groups = seed_groups(g)
+            g = g.sort_values(["seed", "simulation"], kind="stable")
+            values, seeds = scaled(g).to_numpy(), list(dict.fromkeys(g["seed"]))
+            groups = [values[g["seed"].to_numpy() == s] for s in seeds]  # [n_sims, K] per seed
             reps = bs.replicate_means(groups, n_boot, bs.rng_for("cell", scenario, model, trim))
             out.append(Cell(scenario, model, seeds, groups, bs.point_estimate(groups), reps))
     return out
 
 
-def summarise(cell_list: list[Cell], *, trim: bool = False, level: float = bs.LEVEL) -> pd.DataFrame:
+def summarise(cell_list: list[Cell], *, trim: bool = False) -> pd.DataFrame:
     """One row per (scenario, model, metric) of `cells`: estimate, interval, spread, counts."""
     records = []
     for c in cell_list:
-        lo, hi = bs.percentile_interval(bs.mean_over_seeds(c.replicates), level)
+        lo, hi = bs.percentile_interval(bs.mean_over_seeds(c.replicates), bs.LEVEL)
         per_seed = c.seed_means()
         for k, metric in enumerate(METRIC_COLUMNS):
-            _, _, std, n = mean_ci(np.concatenate([g[:, k] for g in c.groups]), level)
+            _, _, std, n = mean_ci(np.concatenate([g[:, k] for g in c.groups]), bs.LEVEL)
             seed_means = per_seed[:, k][np.isfinite(per_seed[:, k])]
             records.append({
                 "scenario": c.scenario, "model": c.model, "metric": metric, "unit": UNITS[metric],
@@ -188,16 +173,11 @@ def summarise(cell_list: list[Cell], *, trim: bool = False, level: float = bs.LE
     return pd.DataFrame(records, columns=SUMMARY_COLUMNS)
 
 
-def aggregate(rows: pd.DataFrame, models: list[str] | None = None, *, trim: bool = False,
-              level: float = bs.LEVEL, n_boot: int = bs.N_BOOT) -> pd.DataFrame:
-    """One row per (scenario, model, metric): estimate, `level` interval, std, n, seed spread.
-
-    Collision rates come in as fractions of steps and go out in percent. `mean` is the mean
-    over seeds of the seeds' means over simulations; `ci_low`/`ci_high` the two-level
-    bootstrap percentile interval; `std` and `n` are over the pooled simulations; `seed_std`
-    is the sample standard deviation of the per-seed means (NaN with one seed).
-    """
-    return summarise(cells(rows, models, trim=trim, n_boot=n_boot), trim=trim, level=level)
+def aggregate(rows: pd.DataFrame, models: list[str] | None = None, *, trim: bool = False) -> pd.DataFrame:
+    """One row per (scenario, model, metric), collision rates in percent: `mean` over seeds of
+    the seeds' means, `ci_low`/`ci_high` the two-level bootstrap percentile interval, `std` and
+    `n` over the pooled simulations, `seed_std` over the per-seed means (NaN with one seed)."""
+    return summarise(cells(rows, models, trim=trim), trim=trim)
 
 
 @dataclass(frozen=True)
@@ -213,8 +193,11 @@ class CompositeScore:
 
 
 def composite_of(means: Mapping[str, Mapping[str, float] | pd.Series]) -> CompositeScore:
-    """Composite scores of the models in one scenario from their means of each composite
-    metric (`sigmarl.metrics.COMPOSITE`: metric -> sign), given as metric -> {model: mean}."""
+    """Composite scores (the paper's eq. 2) of the models in one scenario from their means of
+    each composite metric (`metrics.COMPOSITE`: metric -> sign), given as metric -> {model: mean}:
+    the sum of each metric over its mean across the models, with its sign. Units cancel, but the
+    score depends on which models are in the table; a zero mean leaves it undefined, said in
+    the note instead of dividing by zero."""
     frame = pd.DataFrame({name: pd.Series(means[name], dtype=float) for name in COMPOSITE})
     frame.index.name = "model"
     complete = frame.dropna()
@@ -233,11 +216,7 @@ def composite_of(means: Mapping[str, Mapping[str, float] | pd.Series]) -> Compos
         if not mean[name] > 0:
             why = BY_NAME[name].zero_mean_note or f"composite score undefined: mean {name} is 0"
             return CompositeScore(nan_scores, "; ".join([why, *notes]))
-    scores = None
-    for name, sign in COMPOSITE.items():  # sign x (value / mean), summed in the metrics' order
-        term = complete[name] / mean[name]
-        scores = (-term if sign < 0 else term) if scores is None else \
-            (scores - term if sign < 0 else scores + term)
+    scores = sum(sign * complete[name] / mean[name] for name, sign in COMPOSITE.items())  # in the metrics' order
     return CompositeScore(scores.reindex(frame.index).rename(CS), "; ".join(notes) or None)
 
 

@@ -1,12 +1,9 @@
-"""The seam of the report: a `Section` is one part of it (a name, the files it may write, and the
-function that builds them from a `Draft`), and `build.SECTIONS` is the list of them in order.
-
-A new section is its `Section` (in `report.sections`, or a module of its own) and one line in
-`build.SECTIONS`. It reads
-the rows, the options and what earlier sections left on the draft, writes its files through
-`Draft.write` (or `Draft.file` for a figure), and leaves on the draft what later sections or the
-caller need. A file it does not declare is refused, so the reference page of the report's files
-(drawn from the declarations) lists every file a report can hold.
+"""The seam of the report: a `Section` is one part of it (a name, the files it may write and what
+each holds, when it writes them, the function that builds them from a `Draft`), and
+`build.SECTIONS` lists them in order. A section writes through `Draft.write` (or `Draft.file`
+for a figure) and leaves on the draft what later sections or the caller need; a file it does
+not declare is refused, so the reference page drawn from the declarations lists every file a
+report can hold.
 """
 
 from __future__ import annotations
@@ -72,24 +69,22 @@ class Section:
     """One part of the report.
 
     name: what the reference calls it; files: each file it may write (a `<part>` in a name
-    stands for any text, e.g. `marl_eval_<models>.json`) and what the file holds; when: when it
-    writes them, as the reference reads it after "Written" ("with `--latex`"; "" for every
-    report); build: the function of the draft that writes them.
+    stands for any text, e.g. `marl_eval_<models>.json`) and what the file holds; build: the
+    function of the draft that writes them; when: when it writes them, as the reference reads it
+    after "Written" ("with `--latex`"; "" for every report); needs: that condition on the draft
+    (None: always built).
     """
 
     name: str
     files: Mapping[str, str]
     build: Callable[[Draft], None]
     when: str = ""
+    needs: Callable[[Draft], bool] | None = None
 
     def declares(self, name: str) -> bool:
-        """Whether `name` is one of this section's files."""
-        return any(re.fullmatch(_pattern(f), name) for f in self.files)
-
-
-def _pattern(declared: str) -> str:
-    """A declared file name as a regular expression: `<part>` matches any text without a slash."""
-    return "".join("[^/]+" if p.startswith("<") else re.escape(p) for p in re.split(r"(<[^>]+>)", declared) if p)
+        """Whether `name` is one of this section's files (`<part>`: any text without a slash)."""
+        return any(re.fullmatch("".join("[^/]+" if p.startswith("<") else re.escape(p)
+                                        for p in re.split(r"(<[^>]+>)", f) if p), name) for f in self.files)
 
 
 @dataclass
@@ -130,9 +125,16 @@ class Draft:
     @property
     def paper_models(self) -> dict[str, str | None]:
         """Each column's paper model (M0..M5) by the flags its rows record (their `obs` column, the
-        strategies that were on; one declared since was off), None for another design."""
+        strategies that were on; one declared since was off), None for another design (a strategy
+        not declared here)."""
         obs = self.rows.drop_duplicates("model").set_index("model")["obs"].fillna("").astype(str)
-        return {m: _paper_model_of(obs.get(m, "")) for m in self.models}
+        out: dict[str, str | None] = {}
+        for m in self.models:
+            try:
+                out[m] = paper_model(flags_of(obs.get(m, "")))
+            except SigmarlError:
+                out[m] = None
+        return out
 
     def file(self, key: str, name: str) -> Path:
         """Where the current section's file `name` goes, recorded under `key` (a figure's path)."""
@@ -154,15 +156,6 @@ class Draft:
             path.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n", encoding="utf-8")
         else:
             path.write_text(content, encoding="utf-8")
-
-
-def _paper_model_of(strategies: str) -> str | None:
-    """The paper's model whose strategies a row lists; None for a strategy not declared here
-    (a row of another design is no paper model)."""
-    try:
-        return paper_model(flags_of(strategies))
-    except SigmarlError:
-        return None
 
 
 def check_sections(sections: list[Section]) -> None:

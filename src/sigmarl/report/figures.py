@@ -1,21 +1,15 @@
 """Report figures, drawn with matplotlib's object API on the Agg canvas (no pyplot state).
 
-`plot_paper_band`: the paper's training curves (its Fig. 5, one seed a model) against our seeds'
-band, a panel per model: where the paper's one run lies among ours at each iteration, and the iteration of the
-policy its Table I evaluated (the best mean episode reward of its run).
-
-The two are logged differently. The paper's collector never resets, so its curve is the mean
-return of whole episodes. Ours resets each batch and logs the cut segment as an episode
-(`episode_reward_mean`, "batch-cut"); runs trained since also log the estimate of the paper's
-quantity (`episode_reward_mean_complete`). A panel draws our seeds on that estimate where every
-seed of the model has it, else batch-cut, and says which. Batch-cut at the end of training sits
-`OFFSET` below the paper's definition (two fixed policies, `benchmarks/paper_episode_reward.py`,
-docs/deviations.md): the batch-cut panels of those two models mark our last iterations' mean
-raised by it, the comparison on one definition that the runs allow.
+`plot_paper_band` sets the paper's one run a model (its Fig. 5) against our seeds' band. The
+paper logs whole episodes; ours logs the batch-cut segment (`reward`) and, in runs trained since,
+the complete-episode estimate (`reward_complete`): a panel draws the estimate where every seed
+has it, else batch-cut, and then marks our last iterations raised by the measured `OFFSET`
+(docs/deviations.md, "The logged training reward").
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,89 +28,34 @@ from sigmarl.stats import bootstrap as bs
 from sigmarl.stats.bootstrap import scenario_profiles, seed_band
 
 DISTRIBUTION_METRICS = {name: (label(name), BY_NAME[name].scale) for name in names(FIGURES)}
+PROFILE_BOOT = 1000
+BAND_BOOT = 2000
+# panels per row of the performance profiles and of the heatmap: readable at 1280 px
+PANELS_PER_ROW = 3
+HEATMAP_COLUMNS = 7
 
 
-def plot_distributions(rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path) -> Path:
-    """Box plots of CR_total, CD and AS over the simulations: a row of panels per scenario.
-
-    Every simulation is also drawn as a dot, since with 32 simulations and mostly zero
-    collisions a box alone hides how many simulations had any. The collision rate's axis is
-    symlog, so a model that collides in 40 % of steps leaves the others' tenths of a percent
-    visible.
-    """
-    fig = Figure(figsize=(3.6 * len(DISTRIBUTION_METRICS), 2.6 * len(scenarios)), layout="constrained")
-    axes = np.atleast_2d(fig.subplots(len(scenarios), len(DISTRIBUTION_METRICS), squeeze=False))
-    rng = np.random.default_rng(0)  # fixed jitter: the same rows give the same picture
-    positions = np.arange(1, len(models) + 1)
-    for i, scenario in enumerate(scenarios):
-        sc = rows[rows["scenario"] == scenario]
-        for j, (metric, (title, scale)) in enumerate(DISTRIBUTION_METRICS.items()):
-            ax = axes[i, j]
-            data = [(sc.loc[sc["model"] == m, metric].dropna() * scale).to_numpy() for m in models]
-            filled = [k for k, d in enumerate(data) if len(d)]
-            if filled:
-                ax.boxplot([data[k] for k in filled], positions=positions[filled], widths=0.6, showfliers=False)
-            for k in filled:
-                jitter = rng.uniform(-0.15, 0.15, len(data[k]))
-                ax.plot(positions[k] + jitter, data[k], ".", ms=2, alpha=0.5, color="tab:blue")
-            ax.set_xticks(positions, models)
-            ax.set_xlim(0.4, len(models) + 0.6)
-            ax.set_title(f"{scenario}: {title}", fontsize=9)
-            ax.grid(axis="y", alpha=0.3)
-            if metric in COLLISION_COLUMNS:
-                # linear up to 0.1 %, logarithmic above: one model at 40 % would otherwise
-                # flatten the others' 0-2 % onto the axis
-                top = max([float(d.max()) for d in data if len(d)] + [0.1]) * 1.6
-                ticks = [t for t in (0, 0.1, 1, 10, 100) if t <= top]
-                ax.set_yscale("symlog", linthresh=0.1, linscale=0.5)
-                ax.set_ylim(0, top)
-                ax.set_yticks(ticks, [f"{t:g}" for t in ticks])
-    fig.legend(handles=[Patch(fc="none", ec="black", label="box: quartiles, whiskers: 1.5 IQR"),
-                        Line2D([], [], color="tab:orange", label="median"),
-                        Line2D([], [], ls="", marker=".", color="tab:blue", label="one simulation")],
-               loc="outside lower center", ncols=3, fontsize=8, frameon=False)
-    return _save(fig, path, 120)
+def _grid(n: int, per_row: int, size: tuple[float, float], extra: float = 0.0) -> tuple[Figure, np.ndarray]:
+    """A figure of `n` panels of `size` inches, `per_row` a row (`extra` inches below for the
+    legend), as a flat array; the grid's unused panels hidden."""
+    cols = min(per_row, n)
+    rows = -(-n // cols)
+    fig = Figure(figsize=(size[0] * cols, size[1] * rows + extra), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    return fig, axes
 
 
-def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str] | None = None,
-                         paper: pd.DataFrame | None = None) -> Path:
-    """Mean episode reward per training iteration, one line per model (paper Fig. 5).
+def _drawn(axes: Iterable) -> dict:
+    """Label -> handle of everything the panels drew with a label, each label once."""
+    return {name: h for ax in axes for h, name in zip(*ax.get_legend_handles_labels(), strict=True)}
 
-    `curves` has columns model, iteration, reward and optionally seed; with several seeds
-    the line is their mean and the band their range. `paper` (same columns) adds the paper's
-    curve of each model as a dashed line in the model's colour.
-    """
-    missing = {"model", "iteration", "reward"} - set(curves.columns)
-    if missing:
-        raise ValueError(f"training curves lack the column(s) {', '.join(sorted(missing))}")
-    curves = curves.assign(model=curves["model"].astype(str))
-    if models is None:
-        models = list(dict.fromkeys(curves["model"]))
-    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
-    ax = fig.subplots()
-    banded = False
-    for model in models:
-        c = curves[curves["model"] == model]
-        if c.empty:
-            continue
-        if "seed" in c.columns:  # average the seeds' rewards per iteration first
-            per_seed = c.groupby(["iteration", "seed"])["reward"].mean().unstack("seed")
-        else:
-            per_seed = c.groupby("iteration")["reward"].mean().to_frame()
-        n = per_seed.shape[1]
-        line = ax.plot(per_seed.index, per_seed.mean(axis=1), label=f"{model} ({_seeds(n)})", lw=1.2)[0]
-        if paper is not None and (p := paper[paper["model"] == model]).size:
-            ax.plot(p["iteration"], p["reward"], ls="--", lw=0.9, color=line.get_color(),
-                    label=f"{model} (paper)")
-        if n > 1:
-            banded = True
-            ax.fill_between(per_seed.index, per_seed.min(axis=1), per_seed.max(axis=1),
-                            color=line.get_color(), alpha=0.2, lw=0)
-    _iteration_axis(ax)
-    ax.set_title("training reward per iteration" + (": mean over seeds, band: their range" if banded else ""),
-                 fontsize=9)
-    ax.legend(ncols=2, fontsize=8)
-    return _save(fig, path, 120)
+
+def _legend(fig: Figure, handles: Mapping, most: int = 8, **kwargs) -> None:
+    """One legend under the panels, at most `most` entries a row."""
+    fig.legend(list(handles.values()), list(handles), loc="outside lower center",
+               ncols=min(len(handles), most), **kwargs)
 
 
 def _save(fig: Figure, path: Path, dpi: int) -> Path:
@@ -125,22 +64,109 @@ def _save(fig: Figure, path: Path, dpi: int) -> Path:
     return path
 
 
+def _per_seed(curves: pd.DataFrame, column: str = "reward") -> pd.DataFrame:
+    """One model's curve as iteration x seed (one column where the curves have no seeds)."""
+    if "seed" not in curves.columns:
+        return curves.groupby("iteration")[column].mean().to_frame()
+    return curves.groupby(["iteration", "seed"])[column].mean().unstack("seed")
+
+
 def _seeds(n: int) -> str:
     return f"{n} seed{'s' if n != 1 else ''}"
 
 
-def _iteration_axis(ax) -> None:
-    """Whole iterations on the x axis (a 5-iteration run would otherwise get ticks at 1.5)."""
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+def plot_distributions(rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path) -> Path:
+    """Box plots of CR_total, CD and AS over the simulations: a row of panels per scenario.
+
+    Every simulation is also a dot: with 32 simulations and mostly zero collisions a box alone
+    hides how many had any. The collision rate's axis is symlog (linear up to 0.1 %), so a model
+    at 40 % leaves the others' tenths of a percent visible.
+    """
+    fig, axes = _grid(len(scenarios) * len(DISTRIBUTION_METRICS), len(DISTRIBUTION_METRICS), (3.6, 2.6))
+    rng = np.random.default_rng(0)  # fixed jitter: the same rows give the same picture
+    positions = np.arange(1, len(models) + 1)
+    panels = ((scenario, metric) for scenario in scenarios for metric in DISTRIBUTION_METRICS)
+    for ax, (scenario, metric) in zip(axes, panels, strict=True):
+        title, scale = DISTRIBUTION_METRICS[metric]
+        sc = rows[rows["scenario"] == scenario]
+        data = [(sc.loc[sc["model"] == m, metric].dropna() * scale).to_numpy() for m in models]
+        filled = [k for k, d in enumerate(data) if len(d)]
+        if filled:
+            ax.boxplot([data[k] for k in filled], positions=positions[filled], widths=0.6, showfliers=False)
+        for k in filled:
+            jitter = rng.uniform(-0.15, 0.15, len(data[k]))
+            ax.plot(positions[k] + jitter, data[k], ".", ms=2, alpha=0.5, color="tab:blue")
+        ax.set_xticks(positions, models)
+        ax.set_xlim(0.4, len(models) + 0.6)
+        ax.set_title(f"{scenario}: {title}", fontsize=9)
+        ax.grid(axis="y", alpha=0.3)
+        if metric in COLLISION_COLUMNS:
+            top = max([float(d.max()) for d in data if len(d)] + [0.1]) * 1.6
+            ticks = [t for t in (0, 0.1, 1, 10, 100) if t <= top]
+            ax.set_yscale("symlog", linthresh=0.1, linscale=0.5)
+            ax.set_ylim(0, top)
+            ax.set_yticks(ticks, [f"{t:g}" for t in ticks])
+    _legend(fig, {"box: quartiles, whiskers: 1.5 IQR": Patch(fc="none", ec="black"),
+                  "median": Line2D([], [], color="tab:orange"),
+                  "one simulation": Line2D([], [], ls="", marker=".", color="tab:blue")}, fontsize=8, frameon=False)
+    return _save(fig, path, 120)
+
+
+def _reward_lines(path: Path, title: str, lines: list[tuple], lw: float, paper: pd.DataFrame | None = None) -> Path:
+    """Training reward per iteration, a line per model: `lines` holds (model, label, centre, band
+    or None), `centre` indexed by iteration, the band shaded in its line's colour; `paper`: the
+    paper's curve of each model dashed in the same colour."""
+    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
+    ax = fig.subplots()
+    for model, name, centre, band in lines:
+        line = ax.plot(centre.index, centre.to_numpy(), label=name, lw=lw)[0]
+        if paper is not None and (p := paper[paper["model"] == model]).size:
+            ax.plot(p["iteration"], p["reward"], ls="--", lw=0.9, color=line.get_color(), label=f"{model} (paper)")
+        if band is not None:
+            ax.fill_between(centre.index, *band, color=line.get_color(), alpha=0.2, lw=0)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # a 5-iteration run would get ticks at 1.5
     ax.set_xlabel("iteration")
     ax.set_ylabel("mean episode reward")
     ax.grid(alpha=0.3)
+    ax.set_title(title, fontsize=9)
+    ax.legend(ncols=2, fontsize=8)
+    return _save(fig, path, 120)
 
 
-PROFILE_BOOT = 1000
-# panels per row of the performance profiles and of the heatmap: readable at 1280 px
-PANELS_PER_ROW = 3
-HEATMAP_COLUMNS = 7
+def _curves_of(curves: pd.DataFrame, models: list[str]) -> Iterable[tuple[str, pd.DataFrame]]:
+    """Each model of `models` with a curve, and its rows."""
+    curves = curves.assign(model=curves["model"].astype(str))
+    return ((m, c) for m in models if not (c := curves[curves["model"] == m]).empty)
+
+
+def plot_training_curves(curves: pd.DataFrame, path: Path, models: list[str], paper: pd.DataFrame | None = None) -> Path:
+    """Mean episode reward per training iteration, one line per model (paper Fig. 5): with several
+    seeds their mean, the band their range; `paper` (same columns) adds the paper's curves."""
+    lines = []
+    for model, c in _curves_of(curves, models):
+        per_seed = _per_seed(c)
+        n = per_seed.shape[1]
+        band = (per_seed.min(axis=1), per_seed.max(axis=1)) if n > 1 else None
+        lines.append((model, f"{model} ({_seeds(n)})", per_seed.mean(axis=1), band))
+    banded = any(band is not None for *_, band in lines)
+    title = "training reward per iteration" + (": mean over seeds, band: their range" if banded else "")
+    return _reward_lines(path, title, lines, 1.2, paper)
+
+
+def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str]) -> Path:
+    """Mean episode reward per iteration over seeds, with the 95% bootstrap band of that mean
+    over resampled seeds (`bootstrap.seed_band`); one line per model, no band for one seed (a
+    bootstrap over one seed would draw a band of width zero as if it were certain)."""
+    lines = []
+    for model, c in _curves_of(curves, models):
+        if "seed" not in c.columns:
+            continue
+        per_seed = _per_seed(c)
+        mean, lo, hi = seed_band(per_seed.to_numpy(), BAND_BOOT, bs.rng_for("training-band", model))
+        n = per_seed.shape[1]
+        lines.append((model, f"{model} ({_seeds(n)}{', no band' if n == 1 else ''})",
+                      pd.Series(mean, index=per_seed.index), (lo, hi) if n > 1 else None))
+    return _reward_lines(path, "mean training reward over seeds, 95% bootstrap band over seeds", lines, 1.1)
 
 
 @dataclass(frozen=True)
@@ -196,14 +222,10 @@ def profile_thresholds(axis: ProfileAxis) -> np.ndarray:
 def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: list[str], path: Path) -> Path:
     """rliable-style performance profiles of CR_total: per model, the fraction of simulations
     with CR_total above tau, one panel per scenario and one over all scenarios (their mean),
-    with 95% two-level (seeds, then simulations) bootstrap bands; a grid of panels. Lower is
-    better."""
+    with 95% two-level (seeds, then simulations) bootstrap bands. Lower is better."""
     values = seed_values(rows, HEADLINE)  # in %
     panels = [*scenarios, "all scenarios"] if len(scenarios) > 1 else list(scenarios)
-    ncols = min(PANELS_PER_ROW, len(panels))
-    nrows = -(-len(panels) // ncols)
-    fig = Figure(figsize=(4.2 * ncols, 3.2 * nrows + 0.5), layout="constrained")
-    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    fig, axes = _grid(len(panels), PANELS_PER_ROW, (4.2, 3.2), 0.5)
     for ax, panel in zip(axes, panels, strict=False):
         chosen = scenarios if panel == "all scenarios" else [panel]
         shown = [np.concatenate([np.ravel(g) for g in v]) for (m, s), v in values.items()
@@ -226,62 +248,26 @@ def plot_performance_profiles(rows: pd.DataFrame, models: list[str], scenarios: 
         ax.set_xlabel(f"τ: {label(HEADLINE)}")
         ax.set_ylabel(f"fraction with {HEADLINE} > τ")
         ax.grid(alpha=0.3)
-    for ax in axes[len(panels):]:
-        ax.set_visible(False)
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 8), fontsize=10,
-               frameon=False, title="model", title_fontsize=10)
+    _legend(fig, _drawn(axes[:1]), fontsize=10, frameon=False, title="model", title_fontsize=10)
     fig.suptitle(f"performance profiles of {HEADLINE} (lower is better; band: 95% bootstrap over seeds "
                  "and simulations)", fontsize=10)
     return _save(fig, path, 110)
 
 
-def plot_training_band(curves: pd.DataFrame, path: Path, models: list[str] | None = None,
-                       n_boot: int = 2000) -> Path:
-    """Mean episode reward per iteration over seeds, with the 95% bootstrap band of that mean
-    over resampled seeds (`profiles.seed_band`); one line per model."""
-    curves = curves.assign(model=curves["model"].astype(str))
-    models = models or list(dict.fromkeys(curves["model"]))
-    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
-    ax = fig.subplots()
-    for model in models:
-        c = curves[curves["model"] == model]
-        if c.empty or "seed" not in c.columns:
-            continue
-        per_seed = c.groupby(["iteration", "seed"])["reward"].mean().unstack("seed")
-        mean, lo, hi = seed_band(per_seed.to_numpy(), n_boot, bs.rng_for("training-band", model))
-        n = per_seed.shape[1]
-        line = ax.plot(per_seed.index, mean, label=f"{model} ({_seeds(n)}{', no band' if n == 1 else ''})",
-                       lw=1.1)[0]
-        if n > 1:  # a bootstrap over one seed would draw a band of width zero as if it were certain
-            ax.fill_between(per_seed.index, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
-    _iteration_axis(ax)
-    ax.set_title("mean training reward over seeds, 95% bootstrap band over seeds", fontsize=9)
-    ax.legend(ncols=2, fontsize=8)
-    return _save(fig, path, 120)
-
-
-def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str], path: Path,
-                 metric: str = HEADLINE) -> Path:
-    """A models x scenarios matrix of one metric's estimates (the table's cells), each cell
-    annotated with its estimate and 95 % interval; colour on a log scale, so that 0.05 % and
-    5 % both show. More than HEATMAP_COLUMNS scenarios are split into stacked panels, so that
-    the numbers stay readable at 1280 px."""
-    cells = summary[summary["metric"] == metric].set_index(["model", "scenario"])
-
-    def grid(column: str) -> np.ndarray:
-        return np.array([[cells[column].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
-
-    mean, lo, hi = grid("mean"), grid("ci_low"), grid("ci_high")
+def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str], path: Path) -> Path:
+    """A models x scenarios matrix of CR_total's estimates (the table's cells), each cell annotated
+    with its estimate and 95 % interval; colour on a log scale, so that 0.05 % and 5 % both show.
+    More than HEATMAP_COLUMNS scenarios are split into stacked panels (readable at 1280 px)."""
+    cells = summary[summary["metric"] == HEADLINE].set_index(["model", "scenario"])
+    mean, lo, hi = (np.array([[cells[c].get((m, s), np.nan) for s in scenarios] for m in models], dtype=float)
+                    for c in ("mean", "ci_low", "ci_high"))
     positive = mean[np.isfinite(mean) & (mean > 0)]
     floor = max(float(positive.min()) if positive.size else 0.01, 0.01)
     top = max(float(np.nanmax(mean)) if np.isfinite(mean).any() else 1.0, floor * 10)
     norm = LogNorm(floor, top)
     chunks = [list(range(i, min(i + HEATMAP_COLUMNS, len(scenarios))))
               for i in range(0, len(scenarios), HEATMAP_COLUMNS)]
-    width = 1.55 * len(chunks[0]) + 2.6
-    fig = Figure(figsize=(width, (0.62 * len(models) + 1.3) * len(chunks) + 0.6), layout="constrained")
-    axes = fig.subplots(len(chunks), 1, squeeze=False)[:, 0]
+    fig, axes = _grid(len(chunks), 1, (1.55 * len(chunks[0]) + 2.6, 0.62 * len(models) + 1.3), 0.6)
     for ax, cols in zip(axes, chunks, strict=True):
         image = ax.imshow(np.clip(mean[:, cols], floor, None), cmap="magma_r", norm=norm, aspect="auto")
         for i in range(len(models)):
@@ -292,8 +278,8 @@ def plot_heatmap(summary: pd.DataFrame, models: list[str], scenarios: list[str],
                             va="center", fontsize=8, color="white" if dark else "black")
         ax.set_xticks(range(len(cols)), [scenarios[j] for j in cols], rotation=25, ha="right", fontsize=9)
         ax.set_yticks(range(len(models)), models, fontsize=9)
-    fig.colorbar(image, ax=list(axes), label=f"{label(metric)}, log scale", shrink=0.8)
-    fig.suptitle(f"{metric}: mean over seeds [95% interval over seeds and simulations]", fontsize=10)
+    fig.colorbar(image, ax=list(axes), label=f"{label(HEADLINE)}, log scale", shrink=0.8)
+    fig.suptitle(f"{HEADLINE}: mean over seeds [95% interval over seeds and simulations]", fontsize=10)
     return _save(fig, path, 100)
 
 
@@ -316,17 +302,12 @@ def plot_paper_band(curves: pd.DataFrame, paper: pd.DataFrame, models: list[str]
     models = [m for m in models if (curves["model"] == m).any() and (paper["model"] == m).any()]
     if not models:
         return None
-    rows = -(-len(models) // PANELS_PER_ROW)
-    cols = min(len(models), PANELS_PER_ROW)
-    fig = Figure(figsize=(3.6 * cols, 2.9 * rows + 0.4), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    fig, axes = _grid(len(models), PANELS_PER_ROW, (3.6, 2.9), 0.4)
     for ax, model in zip(axes, models, strict=False):
         _panel(ax, curves[curves["model"] == model], paper[paper["model"] == model].set_index("iteration")["reward"],
                model)
-    for ax in axes[len(models):]:
-        ax.set_visible(False)
-    handles = {label: h for ax in axes for h, label in zip(*ax.get_legend_handles_labels(), strict=True)}
-    fig.legend(handles.values(), handles.keys(), fontsize=7, loc="outside lower center", ncols=len(handles))
+    handles = _drawn(axes)
+    _legend(fig, handles, most=len(handles), fontsize=7)
     fig.suptitle("The paper's one run (whole episodes) against our seeds, mean episode reward per iteration",
                  fontsize=9)
     return _save(fig, path, 120)
@@ -334,20 +315,19 @@ def plot_paper_band(curves: pd.DataFrame, paper: pd.DataFrame, models: list[str]
 
 def _panel(ax, ours: pd.DataFrame, paper: pd.Series, model: str) -> None:
     column, name = definition(ours)
-    per_seed = ours.pivot_table(index="iteration", columns="seed", values=column)
-    n = per_seed.shape[1]
+    per_seed = _per_seed(ours, column)
     ax.fill_between(per_seed.index, per_seed.min(axis=1), per_seed.max(axis=1), color="tab:blue", alpha=0.25, lw=0,
-                    label=f"ours, range of {n} seeds")
+                    label=f"ours, range of {per_seed.shape[1]} seeds")
     ax.plot(per_seed.index, per_seed.median(axis=1), color="tab:blue", lw=1.0, label="ours, median")
     ax.plot(paper.index, paper.to_numpy(), color="black", lw=1.0, label="paper (whole episodes)")
     best = int(paper.idxmax())
     ax.plot([best], [paper.loc[best]], marker="v", color="tab:red", ms=6, ls="none",
             label="paper's evaluated policy")
     if column == "reward" and model in OFFSET_MODELS:  # our last iterations on the paper's definition, by the measured offset
-        last = per_seed.index[-1]
         mean = float(per_seed.tail(LAST).mean(axis=1).mean())
-        ax.errorbar([last + 4], [mean + sum(OFFSET) / 2], yerr=[[(OFFSET[1] - OFFSET[0]) / 2]], fmt="o", ms=3,
-                    color="tab:green", capsize=2, label=f"ours, last {LAST} its., + offset {OFFSET[0]:.2f}–{OFFSET[1]:.2f}")
+        ax.errorbar([per_seed.index[-1] + 4], [mean + sum(OFFSET) / 2], yerr=[[(OFFSET[1] - OFFSET[0]) / 2]], fmt="o",
+                    ms=3, color="tab:green", capsize=2,
+                    label=f"ours, last {LAST} its., + offset {OFFSET[0]:.2f}–{OFFSET[1]:.2f}")
     ax.set_title(f"{model} (ours: {name})", fontsize=8)
     ax.set_xlabel("iteration", fontsize=8)
     ax.set_ylabel("mean episode reward", fontsize=8)

@@ -1,23 +1,14 @@
 """The evaluation as marl-eval's raw-data JSON (Gorsane et al. 2022), and its intervals with
 the real number of runs.
 
-marl-eval reads environment -> task -> algorithm -> run -> step -> metrics, each metric a
-list over evaluation episodes, with the run's final evaluation under "absolute_metrics".
-Here: environment "sigmarl", task = scenario, algorithm = model label, run = "run_<seed>",
-one step ("step_0", its step_count the training iterations when the curves are known, else
-0) and the absolute metrics, both the per-simulation values in the rows' units (collision
-rates as fractions of steps, CD in cm, AS in m/s).
-
-marl-eval's loader (`create_matrices_for_rliable`) takes every algorithm's run names from the
-first algorithm, so a file in which models have different seeds does not load (KeyError
-'run_3'). `export_files` therefore splits the export: `marl_eval.json` holds the seeds common
-to every model, and each group of models sharing a larger seed set gets its own file,
-`marl_eval_<models>.json` (e.g. `marl_eval_M0_M4.json` with 14 seeds each); each file loads whole.
-
-marl-eval's interval helper takes n = 10 runs and z = 1.96 whatever the data; the sidecar
-`marl_eval_intervals.json` gives, per task, algorithm and metric, the mean over seeds of
-each seed's mean, the real n (seeds) and the Student t quantile z = t_(0.975, n - 1) with
-the half-width z * sd / sqrt(n).
+marl-eval reads environment -> task -> algorithm -> run -> step -> metrics, each metric a list
+over evaluation episodes: here "sigmarl" -> scenario -> model -> "run_<seed>" -> "step_0" (its
+step_count the training iterations where known) and "absolute_metrics", the per-simulation values
+in the rows' units. Its loader takes every algorithm's run names from the first one, so a file
+whose models have different seeds does not load (KeyError 'run_3'): `export_files` writes the
+seeds every model has to `marl_eval.json` and each group of models with a larger seed set to
+`marl_eval_<models>.json`. Its interval helper assumes n = 10 runs and z = 1.96; the sidecar
+`marl_eval_intervals.json` gives the real n (seeds) and z = t_(0.975, n - 1).
 """
 
 from __future__ import annotations
@@ -31,10 +22,20 @@ from sigmarl.metrics import METRIC_COLUMNS, ROW_UNITS
 from sigmarl.stats.bootstrap import t_critical
 
 ENVIRONMENT = "sigmarl"
+LEVEL = 0.95
 
 
 def _clean(values: np.ndarray) -> list[float | None]:
     return [float(v) if math.isfinite(v) else None for v in values]
+
+
+def _tasks(rows: pd.DataFrame, models: list[str]):
+    """(scenario, model, its rows) for each model with rows, scenarios in the rows' order."""
+    for scenario in dict.fromkeys(rows["scenario"]):
+        sc = rows[rows["scenario"] == scenario]
+        for model in models:
+            if len(mine := sc[sc["model"] == model]):
+                yield str(scenario), model, mine
 
 
 def marl_eval_data(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | None = None) -> dict:
@@ -44,16 +45,12 @@ def marl_eval_data(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame |
         iterations = curves.groupby(["model", "seed"])["iteration"].max().to_dict()
     metrics = [m for m in METRIC_COLUMNS if m in rows.columns]
     tasks: dict = {}
-    ordered = rows.sort_values(["seed", "simulation"], kind="stable")
-    for scenario in dict.fromkeys(rows["scenario"]):
-        sc = ordered[ordered["scenario"] == scenario]
-        for model in models:
-            mine = sc[sc["model"] == model]
-            for seed, g in mine.groupby("seed", sort=True):
-                values = {m: _clean(g[m].to_numpy(float)) for m in metrics}
-                step = {"step_count": int(iterations.get((model, seed), 0)), **values}
-                run = {"step_0": step, "absolute_metrics": dict(values)}
-                tasks.setdefault(str(scenario), {}).setdefault(model, {})[f"run_{int(seed)}"] = run
+    for scenario, model, mine in _tasks(rows, models):
+        for seed, g in mine.sort_values(["seed", "simulation"], kind="stable").groupby("seed", sort=True):
+            values = {m: _clean(g[m].to_numpy(float)) for m in metrics}
+            step = {"step_count": int(iterations.get((model, seed), 0)), **values}
+            run = {"step_0": step, "absolute_metrics": dict(values)}
+            tasks.setdefault(scenario, {}).setdefault(model, {})[f"run_{int(seed)}"] = run
     return {ENVIRONMENT: tasks}
 
 
@@ -84,9 +81,9 @@ def export_files(rows: pd.DataFrame, models: list[str], curves: pd.DataFrame | N
     return out
 
 
-def interval_data(rows: pd.DataFrame, models: list[str], level: float = 0.95) -> dict:
+def interval_data(rows: pd.DataFrame, models: list[str]) -> dict:
     """Per task, algorithm and metric: mean over seeds, n seeds, z = t quantile, half-width."""
-    out: dict = {"environment": ENVIRONMENT, "level": level, "units": ROW_UNITS,
+    out: dict = {"environment": ENVIRONMENT, "level": LEVEL, "units": ROW_UNITS,
                  "note": "mean over seeds of each seed's mean over its simulations; half_width = "
                          "z * sd(seed means) / sqrt(n), z the Student t quantile with n - 1 degrees "
                          "of freedom (marl-eval's own helper assumes n = 10 and z = 1.96)",
@@ -94,19 +91,15 @@ def interval_data(rows: pd.DataFrame, models: list[str], level: float = 0.95) ->
                            for name, (group, seeds) in seed_groups(rows, models).items()},
                  "tasks": {}}
     metrics = [m for m in METRIC_COLUMNS if m in rows.columns]
-    for scenario in dict.fromkeys(rows["scenario"]):
-        sc = rows[rows["scenario"] == scenario]
-        for model in models:
-            means = sc[sc["model"] == model].groupby("seed")[metrics].mean()
-            if means.empty:
-                continue
-            entry = {}
-            for m in metrics:
-                v = means[m].to_numpy(float)
-                v = v[np.isfinite(v)]
-                n = len(v)
-                z = t_critical(n - 1, level) if n > 1 else None
-                entry[m] = {"mean": float(v.mean()) if n else None, "n": n, "z": z,
-                            "half_width": z * float(v.std(ddof=1)) / math.sqrt(n) if z else None}
-            out["tasks"].setdefault(str(scenario), {})[model] = entry
+    for scenario, model, mine in _tasks(rows, models):
+        means = mine.groupby("seed")[metrics].mean()
+        entry = {}
+        for m in metrics:
+            v = means[m].to_numpy(float)
+            v = v[np.isfinite(v)]
+            n = len(v)
+            z = t_critical(n - 1, LEVEL) if n > 1 else None
+            entry[m] = {"mean": float(v.mean()) if n else None, "n": n, "z": z,
+                        "half_width": z * float(v.std(ddof=1)) / math.sqrt(n) if z else None}
+        out["tasks"].setdefault(scenario, {})[model] = entry
     return out

@@ -31,11 +31,16 @@ from sigmarl.report.training import paper_last_rewards, training_markdown, train
 # in table.md, between what the columns are and the table itself
 TABLE_HEADING = "## Table"
 
+
+def _configured(d: Draft) -> bool:
+    """Whether the columns' training configs are known (the command reads them; a bare
+    `build_report` has none)."""
+    return d.options.configs is not None and d.options.defaults is not None
+
+
 def study_section(d: Draft) -> None:
     """What the report compares (the study page)."""
     o = d.options
-    if o.configs is None or o.defaults is None:
-        return
     text = study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit)
     if o.provenance is not None:  # "study.md" only: table.md's header stays what the rows alone give
         text += "\n" + "\n".join(provenance_markdown(o.provenance, d.models)) + "\n"
@@ -53,10 +58,10 @@ def table_section(d: Draft) -> None:
     paper = tables.paper_values(d.models) if o.compare_paper else None
     measured = set(paper.index.get_level_values("scenario")) if paper is not None else set()
     d.notes = tables.table_notes(d.summary, d.composite, d.models, trim=o.trim, compare_paper=o.compare_paper, ci=o.ci,
-                     paper_scenarios=measured) + list(o.extra_notes)
+                                 paper_scenarios=measured) + list(o.extra_notes)
     d.table = tables.build_table(d.summary, d.composite, d.models, paper, d.notes)
     d.markdown = tables.to_markdown(d.table, ci=o.ci)
-    if o.configs is not None and o.defaults is not None:  # the study page's header: what the columns are
+    if _configured(d):  # the study page's header: what the columns are
         d.markdown = study_markdown(o.configs, d.rows, d.models, d.baseline, o.defaults, o.commit,
                                     title="What this table compares", with_commit=False) \
             + f"\n{TABLE_HEADING}\n\n" + d.markdown
@@ -68,10 +73,7 @@ def table_section(d: Draft) -> None:
 
 
 def statistics_section(d: Draft) -> None:
-    """Probability of improvement and aggregate scores over scenarios (a one-column report has
-    nothing to compare)."""
-    if len(d.models) < 2:
-        return
+    """Probability of improvement and aggregate scores over scenarios."""
     d.improvement = scores.improvement(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
     overall = scores.improvement_overall(d.rows, d.models, trim=d.options.trim, reference=d.baseline)
     d.aggregates = scores.aggregate_scores(d.cells, d.composite, d.models)
@@ -90,7 +92,8 @@ STUDY = Section("study", {
                 "the report was built at; what each column's runs were trained on (Python and library versions, "
                 "CPU and GPU, threads, sigmarl commit and whether its tree was dirty, from each run folder's "
                 "`provenance.json`; \"not recorded\" for runs from before it), with the columns whose library "
-                "versions or hardware differ"}, study_section, when="when the columns' training configs are known (by `sigmarl report`, always)")
+                "versions or hardware differ"}, study_section,
+    when="when the columns' training configs are known (by `sigmarl report`, always)", needs=_configured)
 
 TABLE = Section("table", {
     "table.md": "the same header as `study.md`, less the commit, then Table I: each metric per scenario and "
@@ -105,12 +108,16 @@ STATISTICS = Section("statistics", {
                        "column, with its interval",
     "improvement_overall.csv": "the same averaged over scenarios, whole seeds resampled",
     "aggregate_scores.csv": "each model's composite score over scenarios: mean and IQM, with intervals",
-    "statistics.md": "the three files above as Markdown"}, statistics_section, when="with two columns or more")
+    "statistics.md": "the three files above as Markdown"}, statistics_section,
+    when="with two columns or more", needs=lambda d: len(d.models) > 1)  # one column: nothing to compare
+
+
+def _benchmark_measured(d: Draft) -> bool:
+    """Whether some row measured the benchmark's metrics (rows from before them did not)."""
+    return any(m.name in d.rows.columns and d.rows[m.name].notna().any() for m in in_table(BENCHMARK))
+
 
 def benchmark_section(d: Draft) -> None:
-    names = [m.name for m in in_table(BENCHMARK)]
-    if not any(n in d.rows.columns and d.rows[n].notna().any() for n in names):
-        return  # no row measured them: the report of rows from before them is what it was
     estimates = tables.benchmark_estimates(d.rows, d.models)
     d.write("benchmark_md", "benchmark.md", tables.benchmark_markdown(estimates))
     d.write("benchmark_csv", "benchmark.csv", estimates)
@@ -120,13 +127,12 @@ BENCHMARK_TABLE = Section("benchmark", {
     "benchmark.md": "the CPM Lab benchmark's metrics per scenario and column (task success, collision events "
                     "and lane violation per 100 m driven), `–` where not measured, with their definitions",
     "benchmark.csv": "the same, in the table's units"}, benchmark_section,
-    when="when some rows measured them (`sigmarl evaluate --add-metrics` adds them to older rows)")
+    when="when some rows measured them (`sigmarl evaluate --add-metrics` adds them to older rows)",
+    needs=_benchmark_measured)
 
 
 def training_section(d: Draft) -> None:
     """The training curves' summary."""
-    if d.curves is None:
-        return
     d.training = training_summary(d.curves, d.models)
     last = paper_last_rewards(tables.paper_curves()) if d.options.compare_paper else None
     d.write("training", "training.csv", d.training)
@@ -142,7 +148,7 @@ TRAINING = Section("training", {
     "training.csv": "per seed: iterations, compute time, last and best reward",
     "training.md": "the same per model (the paper's Fig. 5 beside it with `--compare-paper`); where the columns "
                    "train on different rewards it opens by saying their rewards are not comparable"},
-    training_section, when="when training curves (`metrics.csv`) are read")
+    training_section, when="when training curves (`metrics.csv`) are read", needs=lambda d: d.curves is not None)
 
 
 def seeds_section(d: Draft) -> None:
@@ -169,13 +175,12 @@ SEEDS = Section("seeds", {
     "slow_seeds.csv": "with `study.slow_seed`: each variant's slow seeds against its baseline's, Fisher's "
                       "exact p"}, seeds_section)
 
+
 def latex_section(d: Draft) -> None:
     """Table I in LaTeX; its caption says what each column changes, from the study page's header."""
     o = d.options
-    if not o.latex:
-        return
     text = "Evaluation of the models in the test scenarios (best per row in bold)."
-    if o.configs is not None and o.defaults is not None:
+    if _configured(d):
         text += " " + caption(o.configs, d.rows, d.models, d.baseline, o.defaults)
     d.write("latex", "table.tex", tables.to_latex(d.table, ci=o.ci, caption=text))
 
@@ -189,38 +194,29 @@ def marl_eval_section(d: Draft) -> None:
 
 
 def figures_section(d: Draft) -> None:
-    """The report's figures (matplotlib, imported here only)."""
-    if not d.options.figures:
-        return
-    # matplotlib is imported only when drawing: table-only reports stay quick to start
-    from sigmarl.report.figures import (
-        plot_distributions,
-        plot_heatmap,
-        plot_paper_band,
-        plot_performance_profiles,
-        plot_training_band,
-        plot_training_curves,
-    )
+    """The report's figures (matplotlib is slow to load: imported here, table-only reports skip it)."""
+    from sigmarl.report import figures as fig
 
     models, scenarios = d.models, scenario_order(d.rows)
     chosen = d.rows[d.rows["model"].isin(models)]
-    plot_distributions(chosen, models, scenarios, d.file("distributions", "distributions.png"))
+    paper = tables.paper_curves() if d.options.compare_paper else None
+    fig.plot_distributions(chosen, models, scenarios, d.file("distributions", "distributions.png"))
     if d.curves is not None:
-        plot_training_curves(d.curves, d.file("training_curves", "training_curves.png"), models,
-                             paper=tables.paper_curves() if d.options.compare_paper else None)
-        plot_training_band(d.curves, d.file("training_band", "training_band.png"), models)
-        if d.options.compare_paper:
-            own = [m for m in models if d.paper_models[m] == m]
-            if plot_paper_band(d.curves, tables.paper_curves(), own, d.file("paper_band", "paper_band.png")) is None:
-                del d.paths["paper_band"]
+        fig.plot_training_curves(d.curves, d.file("training_curves", "training_curves.png"), models, paper)
+        fig.plot_training_band(d.curves, d.file("training_band", "training_band.png"), models)
+        own = [m for m in models if d.paper_models[m] == m]
+        if paper is not None and fig.plot_paper_band(d.curves, paper, own, d.file("paper_band", "paper_band.png")) \
+                is None:
+            del d.paths["paper_band"]
     if len(scenarios) > 1 and len(models) > 1:
-        plot_heatmap(d.summary, models, scenarios, d.file("heatmap", "heatmap.png"))
-    plot_performance_profiles(chosen, models, scenarios, d.file("performance_profiles", "performance_profiles.png"))
+        fig.plot_heatmap(d.summary, models, scenarios, d.file("heatmap", "heatmap.png"))
+    fig.plot_performance_profiles(chosen, models, scenarios, d.file("performance_profiles", "performance_profiles.png"))
 
 
 LATEX = Section("latex", {
     "table.tex": "Table I in booktabs; its caption says each column's label and what it changes against the "
-                 "baseline, the shared settings and the budget"}, latex_section, when="with `--latex`")
+                 "baseline, the shared settings and the budget"}, latex_section,
+    when="with `--latex`", needs=lambda d: d.options.latex)
 
 MARL_EVAL = Section("marl_eval", {
     "marl_eval.json": "the rows in marl-eval 0.0.4's format, the seeds every model has",
@@ -239,13 +235,12 @@ FIGURES = Section("figures", {
     "paper_band.png": "with `--compare-paper`: the paper's training curve of each of its models against our seeds' "
                       "range and median, on the definition our runs logged (batch-cut, or the complete-episode "
                       "estimate where every seed has it), the paper's evaluated policy's iteration marked"},
-    figures_section, when="unless `--no-figures`")
+    figures_section, when="unless `--no-figures`", needs=lambda d: d.options.figures)
+
 
 def verdicts_section(d: Draft) -> None:
     """One verdict per comparison and, for a factorial study, its interactions."""
     design = d.design
-    if design.baseline not in d.models or not design.compared:
-        return
     measured = trim_collisions(d.rows) if d.options.trim else d.rows
     d.verdicts = verdicts.verdict_table(measured, design)
     d.verdicts_markdown = verdicts.verdicts_markdown(d.verdicts, design)
@@ -259,16 +254,12 @@ def verdicts_section(d: Draft) -> None:
 
 def findings_section(d: Draft) -> None:
     """What the study found, in sentences of its own figures."""
-    if d.summary is None or not len(d.summary):
-        return
     d.write("findings", "findings.md", verdicts.findings_markdown(d.summary, d.verdicts, d.models, d.baseline,
-                                                        d.design.alpha))
+                                                                  d.design.alpha))
 
 
 def curve_verdicts_section(d: Draft) -> None:
     """When the compared training curves part, and whether the paper's one seed could be ours."""
-    if d.training is None:
-        return
     design = d.design
     separation = separation_table(d.curves, design) if design.baseline in d.models else None
     seeds = None
@@ -301,18 +292,20 @@ VERDICTS = Section("verdicts", {
                     "with the comparison engine's interval and p-values, the verdict and the seeds it needs",
     "verdicts.md": "the same as Markdown, a factorial study's interactions under it",
     "interactions.csv": "a factorial study's interactions (difference of differences)"},
-    verdicts_section, when="with a baseline and a variant to compare")
+    verdicts_section, when="with a baseline and a variant to compare",
+    needs=lambda d: d.design.baseline in d.models and bool(d.design.compared))
 
 FINDINGS = Section("findings", {
     "findings.md": "the study's figures in sentences: seeds per model, the baseline's worst collision rate and "
-                   "speed range, each variant's verdicts (the results pages quote it)"}, findings_section)
+                   "speed range, each variant's verdicts (the results pages quote it)"}, findings_section,
+    needs=lambda d: d.summary is not None and len(d.summary) > 0)
 
 CURVE_VERDICTS = Section("curve_verdicts", {
     "curve_verdicts.csv": "each compared variant's reward against its baseline's per window of 25 iterations "
                           "(the comparison engine, Holm-adjusted)",
     "curve_verdicts.md": "the same as Markdown, and where the curves part",
     "paper_seeds.csv": "with `--compare-paper`: whether the paper's one seed could be one of ours"},
-    curve_verdicts_section, when="when training curves are read")
+    curve_verdicts_section, when="when training curves are read", needs=lambda d: d.training is not None)
 
 REPLICATION = Section("replication", {
     "replication.csv": "per claim of the paper's Table I (each M1..M5 minus M0 CR_total per scenario, each "
@@ -367,3 +360,4 @@ PAPER_POLICIES = Section("paper_policies", {
     "paper_policies.md": "the same as Markdown"},
     paper_policies_section,
     when="with `--compare-paper` and the paper's policies' rows (results/paper-policies/ beside the --from folder)")
+

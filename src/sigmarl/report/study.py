@@ -1,12 +1,7 @@
-"""The report's study page ("study.md"): what it compares. Per column its label, fingerprint, seeds
-and the training settings that define it against the baseline; the settings every column shares
-where they differ from the defaults (a command line such as env.n_agents=5 included); the
-budget; the commit the report was built at. A label alone (NA0.2, K4) says none of this.
-
-Its provenance section says what each column's runs were trained on (their run folders'
-`provenance.json`, `sigmarl.tracking.provenance`), and which columns differ in library versions
-or hardware, so that a difference between columns is not read as the design's when the machine
-or the libraries changed too. A run from before the record reads "not recorded".
+"""The report's study page ("study.md"): what it compares, since a label alone (NA0.2, K4) says
+not what a column changed (its contents: docs/reference/outputs.md). Its provenance section says
+what each column's runs were trained on (`provenance.json`) and which columns differ in library
+versions or hardware, so that such a difference is not read as the design's.
 """
 
 from __future__ import annotations
@@ -35,10 +30,18 @@ def _value(settings: dict, key: str) -> str:
     return json.dumps(settings.get(key), default=str) if key in settings else "(unset)"
 
 
-def _changes(cfg: Config, against: Config, quote: str = "`") -> str:
-    mine = training_settings(cfg)
-    keys = changed_keys(cfg, against)
-    return ", ".join(f"{quote}{k}={_value(mine, k)}{quote}" for k in keys) or "–"
+def _changes(configs: Mapping[str, Config], models: Sequence[str], baseline: str | None, quote: str = "`",
+             own: str = "(baseline)", none: str = "–") -> dict[str, str]:
+    """Each column with a config: the training settings it changes against the baseline's."""
+    against = configs.get(baseline) if baseline else None
+
+    def change(m: str) -> str:
+        if m == baseline or against is None:
+            return own if m == baseline else none
+        mine = training_settings(configs[m])
+        return ", ".join(f"{quote}{k}={_value(mine, k)}{quote}" for k in changed_keys(configs[m], against)) or "–"
+
+    return {m: change(m) for m in models if m in configs}
 
 
 def shared_settings(configs: Sequence[Config], defaults: Config) -> list[str]:
@@ -56,10 +59,7 @@ def shared_settings(configs: Sequence[Config], defaults: Config) -> list[str]:
 def reward_differs(configs: Sequence[Config]) -> list[str]:
     """The reward settings (env.reward.*) in which the columns differ: their training rewards
     are then sums of different functions, not comparable."""
-    keys = set()
-    for c in configs[1:]:
-        keys |= {k for k in changed_keys(configs[0], c) if k.startswith("env.reward.")}
-    return sorted(keys)
+    return sorted({k for c in configs[1:] for k in changed_keys(configs[0], c) if k.startswith("env.reward.")})
 
 
 def _span(values) -> str:
@@ -89,12 +89,9 @@ def caption(configs: Mapping[str, Config], rows: pd.DataFrame, models: Sequence[
             defaults: Config) -> str:
     """The study page in one paragraph, for a LaTeX caption: each column's label and what it
     changes against the baseline, the shared settings off the defaults, the budget."""
-    shown = [m for m in models if m in configs]
-    against = configs.get(baseline) if baseline else None
-    columns = [f"{m}: " + ("baseline" if m == baseline else
-                           _changes(configs[m], against, quote="") if against is not None else "(no baseline)")
-               for m in shown]
-    text = "Columns: " + "; ".join(columns) + "." if columns else ""
+    changes = _changes(configs, models, baseline, quote="", own="baseline", none="(no baseline)")
+    shown = list(changes)
+    text = "Columns: " + "; ".join(f"{m}: {c}" for m, c in changes.items()) + "." if changes else ""
     shared = shared_settings([configs[m] for m in shown], defaults)
     if shared:
         text += " All: " + ", ".join(s.replace("`", "") for s in shared) + "."
@@ -106,14 +103,13 @@ def study_markdown(configs: Mapping[str, Config], rows: pd.DataFrame, models: Se
                    with_commit: bool = True) -> str:
     """The report's study page (see the module's docstring); `configs`: one training config per
     column (a run's own where it is on this machine). The same text heads table.md (`title`)."""
-    shown = [m for m in models if m in configs]
-    against = configs.get(baseline) if baseline else None
+    changes = _changes(configs, models, baseline)
+    shown = list(changes)
     lines = [f"# {title}", ""]
     lines += [f"| column | fingerprint | seeds | trained otherwise than {baseline or 'the first column'} |",
               "|---|---|---|---|"]
-    for m in shown:
+    for m, change in changes.items():
         seeds = sorted(set(rows.loc[rows["model"].astype(str) == m, "seed"].astype(int)))
-        change = "(baseline)" if m == baseline else (_changes(configs[m], against) if against is not None else "–")
         lines.append(f"| {m} | `{fingerprint(configs[m])}` | {len(seeds)} ({', '.join(map(str, seeds))}) | {change} |")
     missing = [m for m in models if m not in configs]
     if missing:
@@ -153,13 +149,9 @@ def _text(value: Any, key: str) -> str:
 def values(records: Mapping[int, Any] | None, key: str) -> list[str]:
     """The distinct values of `key` over a column's runs and their starts, in order of seed;
     "not recorded" for a run without the record."""
-    seen = []
-    for seed in sorted(records or {}):
-        runs = records[seed]
-        for v in ([NOT_RECORDED] if runs is None else [_text(r.get(key), key) for r in runs]):
-            if v not in seen:
-                seen.append(v)
-    return seen or [NOT_RECORDED]
+    seen = (v for seed in sorted(records or {})
+            for v in ([NOT_RECORDED] if records[seed] is None else [_text(r.get(key), key) for r in records[seed]]))
+    return list(dict.fromkeys(seen)) or [NOT_RECORDED]
 
 
 def _differs(records: Records, models: Sequence[str], keys: Sequence[str]) -> list[str]:
