@@ -12,7 +12,7 @@ import math
 import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 
 import numpy as np
@@ -53,13 +53,11 @@ def plan_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
     records = []
     for _, r in table.iterrows():
         c = comps[(r["scenario"], r["metric"], r["model"])]
-        margin, w = design.margins[r["metric"]], (1.0, -1.0)
-        counts = [None, None, None]
+        margin, counts = design.margins[r["metric"]], [None, None, None]
         if min(c.test.n_variant, c.test.n_baseline) >= 2:
-            counts = [seeds_needed(margin, c.variances, w, design.alpha, design.power, cap=MAX_SEEDS),
-                      seeds_needed(0.0, c.variances, w, design.alpha, design.power, margin=margin, cap=MAX_SEEDS),
-                      seeds_needed(c.test.difference, c.variances, w, design.alpha, design.power, margin=margin,
-                                   cap=MAX_SEEDS)]
+            need = partial(seeds_needed, variances=c.variances, weights=(1.0, -1.0), alpha=design.alpha,
+                           power_target=design.power, cap=MAX_SEEDS)
+            counts = [need(margin), need(0.0, margin=margin), need(c.test.difference, margin=margin)]
         records.append({**{k: r[k] for k in table.columns if k in PLAN_COLUMNS}, **dict(zip(SEED_COLUMNS, counts, strict=True)),
                         "seed_share_model": shares[r["metric"]].get((r["model"], r["scenario"]), math.nan),
                         "seed_share_baseline": shares[r["metric"]].get((r["baseline"], r["scenario"]), math.nan)})

@@ -91,14 +91,10 @@ def percentile_interval(samples: np.ndarray, level: float = LEVEL) -> tuple[np.n
 
 
 def whole_seed_groups(per_scenario: Sequence[tuple[list, list[np.ndarray]]]) -> tuple[list, list[list]]:
-    """One model's (seeds, groups) per scenario aligned on the union of its seeds (ascending).
-
-    Resampling whole seeds keeps a trained policy's scores on every scenario together: its
-    scores correlate across scenarios, so drawing each scenario's seeds apart (rliable's
-    stratified bootstrap, meant for independent tasks) understates the spread of anything
-    pooled over scenarios. A seed a scenario lacks gets an all-NaN group, which the means
-    skip. Returns the union and, per scenario, its groups in the union's order.
-    """
+    """One model's (seeds, groups) per scenario aligned on the union of its seeds (ascending), so
+    that a resample draws whole seeds, each with its scores on every scenario (they correlate, so
+    drawing each scenario's seeds apart, rliable's stratified bootstrap, is too narrow). A seed a
+    scenario lacks gets an all-NaN group, which the means skip."""
     union = sorted({s for seeds, _ in per_scenario for s in seeds})
     aligned = []
     for seeds, groups in per_scenario:
@@ -137,9 +133,7 @@ def probability_of_improvement(x: Sequence[np.ndarray], y: Sequence[np.ndarray])
     with seed-level weights. Lower is better (collision rates): 1 means x always did better.
     """
     codes_x, codes_y, n_values = _codes(x, y)
-    (px, lx), (py, ly) = padded(codes_x), padded(codes_y)
-    hx = _histogram(px[None, ..., 0], np.arange(px.shape[1]) < lx[:, None], n_values)
-    hy = _histogram(py[None, ..., 0], np.arange(py.shape[1]) < ly[:, None], n_values)
+    hx, hy = (_histogram(padded(c)[0][None, ..., 0], None, n_values) for c in (codes_x, codes_y))
     return float(_compare(hx, hy)[0])
 
 
@@ -170,10 +164,10 @@ def _codes(x: Sequence[np.ndarray], y: Sequence[np.ndarray]) -> tuple[list, list
     return [code(g) for g in x], [code(g) for g in y], max(len(distinct), 1)
 
 
-def _histogram(codes: np.ndarray, valid: np.ndarray, n_values: int) -> np.ndarray:
-    """[B, n_values]: per replicate, the weight on each distinct value; a draw weighs
-    1 / (seeds with a finite draw x finite draws of its seed), so each replicate sums to 1."""
-    valid = valid & np.isfinite(codes)
+def _histogram(codes: np.ndarray, valid: np.ndarray | None, n_values: int) -> np.ndarray:
+    """[B, n_values]: per replicate, the weight on each distinct value; a finite draw (of those
+    `valid`) weighs 1 / (seeds with a finite draw x finite draws of its seed): each sums to 1."""
+    valid = np.isfinite(codes) if valid is None else valid & np.isfinite(codes)
     per_seed = valid.sum(-1, keepdims=True)
     seeds = (per_seed > 0).sum(-2, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -215,9 +209,8 @@ def exceedance(values: np.ndarray, valid: np.ndarray, taus: np.ndarray) -> np.nd
 def profile(groups: Sequence[np.ndarray], taus: np.ndarray) -> np.ndarray:
     """[T]: the fraction of simulations above each tau (seeds weigh equally); groups are each
     seed's 1-D finite values."""
-    values, lengths = padded([np.asarray(g, float)[:, None] for g in groups])
-    valid = np.arange(values.shape[1]) < lengths[:, None]
-    return exceedance(values[..., 0], valid, taus)
+    values = padded([np.asarray(g, float)[:, None] for g in groups])[0][..., 0]
+    return exceedance(values, np.isfinite(values), taus)
 
 
 def profile_replicates(groups: Sequence[np.ndarray], taus: np.ndarray, n_boot: int,
