@@ -32,6 +32,7 @@ def test_difference_of_differences_by_hand():
     # se^2 = 1/3 + 1/3 + 1/12 + 1/12 = 5/6, t = 1.64: decided by the comparison engine
     (r,) = interaction_table(_rows(SEEDS), DESIGN).to_dict("records")
     assert (r["x_difference"], r["y_difference"], r["difference"]) == pytest.approx((2.0, 0.5, 1.5))
+    assert r["seeds"] == "3/3/3/3"  # x / its baseline / y / its baseline
     nulls = {"zero": Null(0.0), "above": Null(-0.1, "greater"), "below": Null(0.1, "less")}
     direct = interaction(*(SEEDS[m] for m in ("M4-paper", "M0-paper", "M4", "M0")), nulls)
     assert direct.se == pytest.approx(math.sqrt(5 / 6))

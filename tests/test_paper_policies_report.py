@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from sigmarl.report.build import build_report
-from sigmarl.report.compare.paper_policies import policy_table
+from sigmarl.report.compare.paper_policies import deltas, policy_table
 from sigmarl.report.draft import BuildOptions
 from sigmarl.results.folders import imported_folder_beside, read_imported
 
@@ -39,21 +39,22 @@ IMPORTED = pd.DataFrame([*_rows("M0-ITSC24", 0, 0.25, "paper"), *_rows("M0-ITSC2
 
 
 def test_each_number_by_hand():
-    table = policy_table(OURS, IMPORTED, ["M0", "M5"]).set_index("model")
+    table = policy_table(OURS, IMPORTED, ["M0", "M5"])
+    d = deltas(table).set_axis(table["model"])
+    table = table.set_index("model")
     m0, m5 = table.loc["M0"], table.loc["M5"]
-    assert (m0["claim"], m5["claim"]) == ("baseline", "difference")
     assert (m0["policy"], m5["policy"]) == ("M0-ITSC24", "M5-ITSC24")
     assert m0["ours"] == pytest.approx(0.2) and m5["ours"] == pytest.approx(0.4)
     assert (m0["policy_paper_rules"], m0["policy_our_rules"]) == pytest.approx((0.25, 0.15))
     # 0.25 lies above our M0 seeds 0.1 and 0.2; 0.7 above all three M5 seeds; adapted 0.5 above two
-    assert (m0["seeds_lower"], m0["rank"]) == (2, "worse than 2 of 3")
-    assert (m5["seeds_lower"], m5["rank"], m5["seeds_lower_our_rules"]) == (3, "worse than 3 of 3", 2)
+    assert (m0["seeds_lower"], m0["n_seeds"]) == (2, 3)
+    assert (m5["seeds_lower"], m5["n_seeds"], m5["seeds_lower_our_rules"]) == (3, 3, 2)
     assert m5["table_i"] == TABLE_I["M5"]
-    assert m5["table_i_delta"] == pytest.approx(TABLE_I["M5"] - TABLE_I["M0"])
-    assert m5["ours_delta"] == pytest.approx(0.4 - 0.2)
-    assert m5["policy_delta_paper_rules"] == pytest.approx(0.7 - 0.25)
-    assert m5["policy_delta_our_rules"] == pytest.approx(0.5 - 0.15)
-    assert pd.isna(m0["table_i_delta"]) and (table["explanation"] == "").all()
+    assert d.loc["M5", "table_i"] == pytest.approx(TABLE_I["M5"] - TABLE_I["M0"])
+    assert d.loc["M5", "ours"] == pytest.approx(0.4 - 0.2)
+    assert d.loc["M5", "policy_paper_rules"] == pytest.approx(0.7 - 0.25)
+    assert d.loc["M5", "policy_our_rules"] == pytest.approx(0.5 - 0.15)
+    assert d.loc["M0"].isna().all() and (table["explanation"] == "").all()
 
 
 def test_the_other_files_are_the_same_with_and_without_imported_rows(tmp_path):
@@ -65,7 +66,8 @@ def test_the_other_files_are_the_same_with_and_without_imported_rows(tmp_path):
         assert path.read_bytes() == both.paths[key].read_bytes(), key
     assert "ITSC24" not in (tmp_path / "b" / "table.csv").read_text()
     md = (tmp_path / "b" / "paper_policies.md").read_text()
-    assert "| CPM | M5 (M5-ITSC24) | 0.63 | 0.40 (3) | 0.70 | 0.50 | worse than 3 of 3 | +0.25 |" in md
+    assert "| CPM | M0 (M0-ITSC24) | 0.38 | 0.20 (3) | 0.25 | 0.15 | worse than 2 of 3 | – |" in md
+    assert "| CPM | M5 (M5-ITSC24) | 0.63 | 0.40 (3) | 0.70 | 0.50 | worse than 3 of 3 | +0.25 | +0.20 | +0.45 | +0.35 |" in md
     # without --compare-paper: no section
     none = build_report(OURS, BuildOptions(out_dir=tmp_path / "c", figures=False, imported=IMPORTED))
     assert "paper_policies" not in none.paths
@@ -81,7 +83,7 @@ def test_the_committed_rows_are_found_beside_paper_budget_and_read():
 
 
 def test_each_unreproduced_claim_takes_the_first_explanation_a_measurement_supports():
-    """Hand-made claims, Table I's Δ +2.0 and ours +0.2 unless stated, 14 seeds:
+    """Hand-made claims, Table I's Δ +2.0 and ours +0.2 (against M0's row), 14 seeds:
     - a policy Δ of +1.9 (nearer 2.0 than 0.2) worse than 13 of 14 seeds: the paper's own run;
     - the same with the reward interaction decided in the paper's direction: the paper's reward;
     - a policy Δ of +0.5 (nearer ours), seed luck by the replication table: seed luck;
@@ -89,13 +91,13 @@ def test_each_unreproduced_claim_takes_the_first_explanation_a_measurement_suppo
     - a reproduced claim and the baseline's row: `–`."""
     from sigmarl.report.compare.paper_policies import explain
 
-    def claim(model, policy_delta, lower, claim="difference"):
-        return {"claim": claim, "scenario": "CPM", "model": model, "n_seeds": 14, "seeds_lower": lower,
-                "table_i_delta": 2.0, "ours_delta": 0.2, "policy_delta_paper_rules": policy_delta}
+    def claim(model, policy_delta, lower, table_i=2.0, ours=0.2):
+        return {"scenario": "CPM", "model": model, "n_seeds": 14, "seeds_lower": lower, "table_i": table_i,
+                "ours": ours, "policy_paper_rules": policy_delta, "policy_our_rules": float("nan")}
 
-    table = pd.DataFrame([claim("M0", None, 7, "baseline"), claim("M2", 1.9, 13), claim("M3", 1.9, 13),
+    table = pd.DataFrame([claim("M0", 0.0, 7, 0.0, 0.0), claim("M2", 1.9, 13), claim("M3", 1.9, 13),
                           claim("M4", 0.5, 14), claim("M5", 0.5, 14), claim("M1", 1.9, 12), claim("X", 1.9, 14)])
-    replication = pd.DataFrame({"claim": "difference", "scenario": "CPM",
+    replication = pd.DataFrame({"scenario": "CPM",
                                 "model": ["M2", "M3", "M4", "M5", "M1", "X"],
                                 "verdict": ["not reproduced", "not reproduced", "not reproduced", "reversed",
                                             "not reproduced", "reproduced"],

@@ -13,7 +13,10 @@ import pandas as pd
 import pytest
 
 from sigmarl.report.compare.replication import (
+    INTERACTION_COLUMNS,
+    RANKING_COLUMNS,
     STRUCK,
+    Replication,
     decide,
     difference_claims,
     one_sided,
@@ -45,6 +48,10 @@ def rows_of(seed_means: dict[tuple[str, str], list[float]], cd: float = 1.0, spe
                 records.append({"model": model, "obs": "", "seed": seed, "scenario": scenario, "simulation": sim,
                                 "CR_AA": x / 100, "CR_AL": 0.0, "CR_total": x / 100, "CD": cd, "AS": speed})
     return pd.DataFrame(records)
+
+
+def only_differences(table: pd.DataFrame) -> Replication:
+    return Replication(table, pd.DataFrame(columns=RANKING_COLUMNS), pd.DataFrame(columns=INTERACTION_COLUMNS))
 
 
 # ---- the two-seed-by-two-seed case, by hand ----
@@ -95,6 +102,7 @@ def test_reversed_claim_and_paper_outside_our_range():
     # beyond every one of 64 pairs: p = 2 / 65, one claim, so Holm leaves it: not seed luck
     assert r["pair_percentile"] == 100.0 and r["p_seed_luck"] == pytest.approx(2 / 65)
     assert r["p_reversed"] < 0.001 and r["verdict"] == "reversed"
+    assert r["p_verdict"] == r["p_reversed"]  # the one test a reversal rests on
     assert r["explanation"] == "not seed luck"
     assert r["ci_low"] < r["ours"] < r["ci_high"] < 0
 
@@ -107,7 +115,9 @@ def test_not_reproduced_and_undecided_with_seeds_needed():
     t = difference_claims(rows, ["M0", "M5"], "M0").set_index("scenario")
     assert t.loc["Intersection", "verdict"] == "not reproduced"
     assert t.loc["Intersection", "p_smaller"] < 0.01
+    assert t.loc["Intersection", "p_verdict"] == t.loc["Intersection", "p_smaller"]
     assert t.loc["CPM", "verdict"] == "undecided"
+    assert t.loc["CPM", "p_verdict"] == t.loc["CPM", "p_direction"]  # the paper's direction, not shown
     # +2.05 beyond all 36 pairs: p 2/37 = 0.054 unadjusted, so seed luck cannot be ruled out at 6 seeds
     assert t.loc["Intersection", "explanation"] == "seed luck"
     assert t.loc["CPM", "explanation"] == "seed luck"
@@ -120,7 +130,7 @@ def test_one_seed_a_side_is_undecided_with_no_interval():
                     ("M5", "Intersection"): [4.0]})
     t = difference_claims(rows, ["M0", "M5"], "M0")
     assert (t["verdict"] == "undecided").all() and t["ci_low"].isna().all() and t["seeds_needed"].isna().all()
-    assert "[–]" in replication_markdown(t)
+    assert "[–]" in replication_markdown(only_differences(t))
     ranks = ranking_claims(rows_of({("M0", "CPM"): [0.4], ("M4", "CPM"): [9.0]}), ["M0", "M4"], n_boot=200)
     assert ranks["verdict"].tolist() == ["undecided"]
 
@@ -134,7 +144,8 @@ def test_struck_out_values_are_data_and_no_claim():
     assert t.loc["On-Ramp", "verdict"] == STRUCK and math.isnan(t.loc["On-Ramp", "p_direction"])
     assert t.loc["On-Ramp", "ours"] == pytest.approx(42.333 - 0.1333, abs=1e-3)  # our number beside it
     assert t.loc["CPM", "verdict"] != STRUCK
-    assert "1 more struck out by the paper" in summary_line(t.reset_index())
+    assert math.isnan(t.loc["On-Ramp", "p_verdict"])
+    assert "1 more struck out by the paper" in summary_line(t.reset_index(), pd.DataFrame(columns=RANKING_COLUMNS))
 
 
 def test_ranking_by_whole_seeds():
@@ -143,16 +154,16 @@ def test_ranking_by_whole_seeds():
              ("M0", "CPM"): [0.1, 0.2, 0.1], ("M4", "CPM"): [2.0, 2.5, 3.0]}
     t = ranking_claims(rows_of(seeds), ["M0", "M4"], n_boot=500).set_index("scenario")
     assert PAPER.loc[("CPM", "CS"), ["M0", "M4"]].idxmax() == "M4"
-    assert t.loc["Intersection", "model"] == "M0" and t.loc["Intersection", "ours"] == 1.0
+    assert t.loc["Intersection", "paper_best"] == "M0" and t.loc["Intersection", "share_first"] == 1.0
     assert t.loc["Intersection", "verdict"] == "reproduced"
-    assert t.loc["CPM", "ours"] == 0.0 and t.loc["CPM", "verdict"] == "not reproduced"
-    assert t.loc["CPM", "explanation"] == "most often first: M0"
+    assert t.loc["CPM", "share_first"] == 0.0 and t.loc["CPM", "verdict"] == "not reproduced"
+    assert t.loc["CPM", "most_often_first"] == "M0"
 
 
 def test_ranking_share_of_an_even_race_is_near_half():
     # two seeds each, one better and one worse than the other model: whichever draw has the lower mean wins
     seeds = {("M0", "Intersection"): [0.0, 2.0], ("M4", "Intersection"): [1.0, 1.0]}
-    share = ranking_claims(rows_of(seeds), ["M0", "M4"], n_boot=4000).iloc[0]["ours"]
+    share = ranking_claims(rows_of(seeds), ["M0", "M4"], n_boot=4000).iloc[0]["share_first"]
     # M0 ranks first when its draw holds seed 0 at least once but not only seed 1: draws (0,0), (0,1), (1,0)
     # give means 0, 1, 1 against M4's 1; CR ties leave CD and AS equal, scores equal, argmax picks M0
     assert share == pytest.approx(0.75, abs=0.03)
@@ -164,20 +175,21 @@ def test_published_replication_is_the_committed_folders():
     from sigmarl.results.folders import read_results
 
     rows = read_results(ROOT / "results" / "paper-budget").rows
-    table = replication_table(rows, ["M0", "M1", "M2", "M3", "M4", "M5"])
-    claims = table[(table["claim"] == "difference") & (table["verdict"] != STRUCK)]
-    assert len(claims) == 17 and (table["verdict"] == STRUCK).sum() == 3 and (table["claim"] == "ranking").sum() == 4
-    assert table["verdict"].notna().all()
+    found = replication_table(rows, ["M0", "M1", "M2", "M3", "M4", "M5"])
+    table = found.differences
+    claims = table[table["verdict"] != STRUCK]
+    assert len(claims) == 17 and (table["verdict"] == STRUCK).sum() == 3 and len(found.rankings) == 4
+    assert table["verdict"].notna().all() and found.rankings["verdict"].notna().all()
     page = (ROOT / "docs" / "results" / "paper-study.md").read_text(encoding="utf-8")
-    assert replication_markdown(table) in page
+    assert replication_markdown(found) in page
     # every claim's paper number is Table I's
-    for _, r in table[table["claim"] == "difference"].iterrows():
+    for _, r in table.iterrows():
         assert r["paper"] == pytest.approx(paper_difference(r["scenario"], r["model"]))
     assert list(itertools.islice(table["scenario"], 1)) == ["CPM"]
 
 
 def test_summary_counts_each_verdict():
-    table = pd.DataFrame({"claim": ["difference"] * 3 + ["ranking"], "seeds": ["5/14", "6/14", "14/14", "14"],
-                          "verdict": ["reversed", "undecided", "undecided", "reproduced"]})
-    assert summary_line(table) == ("Summary (5–14 seeds a model). Of the paper's 3 CR_total differences: "
+    differences = pd.DataFrame({"seeds": ["5/14", "6/14", "14/14"], "verdict": ["reversed", "undecided", "undecided"]})
+    rankings = pd.DataFrame({"seeds": [14], "verdict": ["reproduced"]})
+    assert summary_line(differences, rankings) == ("Summary (5–14 seeds a model). Of the paper's 3 CR_total differences: "
                                    "1 reversed; 2 undecided. Of the paper's 1 best-score rankings: 1 reproduced.")

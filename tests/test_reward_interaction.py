@@ -65,30 +65,33 @@ def configs():
 def _report(tmp_path, rows, configs):
     report = build_report(rows, BuildOptions(out_dir=tmp_path, compare_paper=True, figures=False, design=DESIGN,
                                              configs=configs, imported=IMPORTED))
-    replication = pd.read_csv(report.paths["replication"]).set_index(["claim", "scenario", "model"])
+    replication = pd.read_csv(report.paths["replication"]).set_index(["scenario", "model"])
+    interactions = pd.read_csv(report.paths["replication_interactions"]).set_index(["scenario", "model"])
     policies = pd.read_csv(report.paths["paper_policies"]).set_index(["scenario", "model"])
-    return report, replication, policies
+    return report, replication, interactions, policies
 
 
 def test_the_interaction_per_claim_by_hand_and_the_explanation_it_gives(tmp_path, configs):
-    report, replication, policies = _report(tmp_path, _study(), configs)
-    inter, round_ = replication.loc[("difference", "Intersection", "M5")], replication.loc[("difference", "Roundabout", "M5")]
+    report, replication, interactions, policies = _report(tmp_path, _study(), configs)
     # ours M5 - M0 = 0 against the paper's +2.05: not reproduced on both maps
-    assert inter["verdict"] == round_["verdict"] == "not reproduced"
-    assert inter["ours"] == pytest.approx(0.0, abs=1e-9)
+    assert replication.loc[("Intersection", "M5"), "verdict"] == replication.loc[("Roundabout", "M5"), "verdict"] \
+        == "not reproduced"
+    assert replication.loc[("Intersection", "M5"), "ours"] == pytest.approx(0.0, abs=1e-9)
+    inter, round_ = interactions.loc[("Intersection", "M5")], interactions.loc[("Roundabout", "M5")]
     # (2.3 - 0.3) - (0.2 - 0.2) = +2.0; (0.04 - 0.3) - 0 = -0.26
-    assert inter["interaction_difference"] == pytest.approx(2.0)
-    assert round_["interaction_difference"] == pytest.approx(0.04 - 0.3)
-    assert (inter["interaction"], inter["interaction_seeds"]) == ("M5-reward", "5/5/5/5")
+    assert inter["difference"] == pytest.approx(2.0)
+    assert round_["difference"] == pytest.approx(0.04 - 0.3)
+    assert inter["paper"] == pytest.approx(3.01 - 0.96)
+    assert (inter["condition"], inter["seeds"]) == ("M5-reward", "5/5/5/5")
     # the engine's own test on the same seed means, Holm over the two claims' interactions
     m = DESIGN.margins["CR_total"]
     nulls = {"zero": Null(0.0), "above": Null(-m, "greater"), "below": Null(m, "less")}
     low, high = sorted(interaction(M5_REWARD[s], SEEDS["M0-reward"], SEEDS["M5"], SEEDS["M0"], nulls).p["zero"]
                        for s in M5_REWARD)
     holm = [min(1.0, 2 * low), max(min(1.0, 2 * low), high)]  # Holm's step-down, two tests
-    assert sorted([inter["p_interaction"], round_["p_interaction"]]) == pytest.approx(holm, abs=1e-9)
-    assert inter["p_interaction"] < 0.05 and round_["p_interaction"] < 0.05
-    assert (inter["interaction_verdict"], round_["interaction_verdict"]) == (
+    assert sorted([inter["p_difference_holm"], round_["p_difference_holm"]]) == pytest.approx(holm, abs=1e-9)
+    assert inter["p_difference_holm"] < 0.05 and round_["p_difference_holm"] < 0.05
+    assert (inter["verdict"], round_["verdict"]) == (
         "paper's direction", "against the paper's direction")
     # the paper's reward explains the Intersection's claim; the Roundabout's falls to the next cause
     # (the paper's +3.54 outside all 25 of our seed pairs: 2 (1 + 0) / 26 = 0.077 > 0.05, seed luck)
@@ -99,11 +102,11 @@ def test_the_interaction_per_claim_by_hand_and_the_explanation_it_gives(tmp_path
 
 
 def test_one_seed_is_undecided_and_explains_nothing(tmp_path, configs):
-    _, replication, policies = _report(tmp_path, _study(m5_reward_seeds=1), configs)
-    inter = replication.loc[("difference", "Intersection", "M5")]
-    assert inter["interaction_seeds"] == "1/5/5/5" and inter["interaction_verdict"] == "undecided"
-    assert inter["interaction_difference"] == pytest.approx(2.2 - 0.3)  # the estimate stands, no test
-    assert np.isnan(inter["p_interaction"]) and np.isnan(inter["interaction_ci_low"])
+    _, _, interactions, policies = _report(tmp_path, _study(m5_reward_seeds=1), configs)
+    inter = interactions.loc[("Intersection", "M5")]
+    assert inter["seeds"] == "1/5/5/5" and inter["verdict"] == "undecided"
+    assert inter["difference"] == pytest.approx(2.2 - 0.3)  # the estimate stands, no test
+    assert np.isnan(inter["p_difference_holm"]) and np.isnan(inter["ci_low"])
     assert policies.loc[("Intersection", "M5"), "explanation"] == "seed luck"
 
 
@@ -112,15 +115,14 @@ def test_only_the_paper_reward_switch_counts_as_the_paper_reward(tmp_path, confi
     interaction is still shown, but it is not the paper's reward that it measures."""
     other = {**configs, "M5-reward": compose_config(["obs=no_distance_to_center_line",
                                                      "rules.reward_normaliser_one=true", "rules.drag_dynamics=true"])}
-    _, replication, policies = _report(tmp_path, _study(), other)
-    assert replication.loc[("difference", "Intersection", "M5"), "interaction_verdict"] == "paper's direction"
+    _, _, interactions, policies = _report(tmp_path, _study(), other)
+    assert interactions.loc[("Intersection", "M5"), "verdict"] == "paper's direction"
     assert policies.loc[("Intersection", "M5"), "explanation"] == "seed luck"
 
 
-def test_a_study_without_interactions_leaves_the_columns_empty(tmp_path):
+def test_a_study_without_interactions_writes_no_interaction_file(tmp_path):
     rows = _study()
     report = build_report(rows[rows["model"].isin(["M0", "M5"])],
                           BuildOptions(out_dir=tmp_path, compare_paper=True, figures=False))
-    replication = pd.read_csv(report.paths["replication"])
-    assert "interaction_verdict" in replication and replication["interaction_verdict"].isna().all()
+    assert "replication" in report.paths and "replication_interactions" not in report.paths
     assert "Does the other condition" not in report.paths["replication_md"].read_text()

@@ -22,7 +22,12 @@ from sigmarl.report.compare.curves import (
     separation_table,
 )
 from sigmarl.report.compare.paper_policies import explain, policy_markdown, policy_table
-from sigmarl.report.compare.replication import PAPERS_WAY, replication_markdown, replication_table
+from sigmarl.report.compare.replication import (
+    COLUMNS,
+    PAPERS_WAY,
+    replication_markdown,
+    replication_table,
+)
 from sigmarl.report.draft import Draft, Section
 from sigmarl.report.marl_eval import export_files, interval_data
 from sigmarl.report.study import caption, provenance_markdown, reward_differs, study_markdown
@@ -282,9 +287,12 @@ def replication_section(d: Draft) -> None:
     own = [m for m in d.models if paper[m] == m]
     if "M0" not in own or len(own) < 2:
         return
-    table = replication_table(d.rows, own, "M0", d.design.alpha, d.design)
-    d.write("replication", "replication.csv", table)
-    d.write("replication_md", "replication.md", replication_markdown(table, d.design.alpha) if len(table) else None)
+    found = replication_table(d.rows, own, "M0", d.design.alpha, d.design)
+    d.write("replication", "replication.csv", found.differences[COLUMNS])
+    d.write("replication_rankings", "replication_rankings.csv", found.rankings)
+    d.write("replication_interactions", "replication_interactions.csv", found.interactions)
+    any_claim = len(found.differences) or len(found.rankings)
+    d.write("replication_md", "replication.md", replication_markdown(found, d.design.alpha) if any_claim else None)
 
 
 VERDICTS = Section("verdicts", {
@@ -308,15 +316,20 @@ CURVE_VERDICTS = Section("curve_verdicts", {
     curve_verdicts_section, when="when training curves are read", needs=lambda d: d.training is not None)
 
 REPLICATION = Section("replication", {
-    "replication.csv": "per claim of the paper's Table I (each M1..M5 minus M0 CR_total per scenario, each "
-                       "scenario's best composite score; Table I's struck-out values listed apart): the paper's "
-                       "number, ours with its interval, the paper's percentile and p among our one-seed "
-                       "differences, the comparison engine's four one-sided Holm-adjusted p-values, the verdict "
-                       "and its explanation (collision rates trimmed as the paper's); in a study that declares "
-                       "an interaction on a claim's model (`study=paper_reward`: Mk - M0 under the paper's reward "
-                       "against ours), `interaction_*`: its difference of differences, interval, Holm-adjusted p "
-                       "and verdict (paper's direction, against it, same, undecided)",
-    "replication.md": "the same as Markdown, the interactions in a table of their own"},
+    "replication.csv": "per claim of the paper's Table I (each M1..M5 minus M0 CR_total per scenario; Table I's "
+                       "struck-out values listed apart): the paper's number, ours with its interval, the paper's "
+                       "percentile and Holm-adjusted p among our one-seed differences (`p_seed_luck`), `p_verdict` "
+                       "(the Holm-adjusted p of the comparison engine's one-sided test the verdict rests on; all four "
+                       "in `replication.md`), the verdict, its explanation and the seeds it needs (collision rates "
+                       "trimmed as the paper's)",
+    "replication_rankings.csv": "per scenario: the paper's best composite score's model, the share of whole-seed "
+                                "replicates in which it ranks first here, the model most often first, the verdict",
+    "replication_interactions.csv": "in a study that declares an interaction on a claim's model "
+                                    "(`study=paper_reward`: Mk - M0 under the paper's reward against ours), per claim "
+                                    "(scenario, model): the other condition's column, the four groups' seeds, the "
+                                    "difference of differences with its interval, Holm-adjusted p and verdict (paper's "
+                                    "direction, against it, same, undecided)",
+    "replication.md": "the three files above as Markdown, every p-value of each claim"},
     replication_section, when="with `--compare-paper`, over the columns that are the paper's own models, M0 among them")
 
 def paper_policies_section(d: Draft) -> None:
@@ -327,23 +340,23 @@ def paper_policies_section(d: Draft) -> None:
         return
     paper = d.paper_models
     own = [m for m in d.models if paper[m] == m]
-    table = policy_table(d.rows[d.rows["model"].isin(own)], imported, own, "M0")
+    table = policy_table(d.rows[d.rows["model"].isin(own)], imported, own)
     if "replication" in d.paths and len(table):  # each unreproduced claim's explanation
-        replication = pd.read_csv(d.paths["replication"])
-        table["explanation"] = explain(table, replication, reward_explains(replication, d.options.configs or {}))
+        interactions = d.paths.get("replication_interactions")
+        reward = reward_explains(pd.read_csv(interactions), d.options.configs or {}) if interactions else {}
+        table["explanation"] = explain(table, pd.read_csv(d.paths["replication"]), reward)
     d.write("paper_policies", "paper_policies.csv", table)
     d.write("paper_policies_md", "paper_policies.md", policy_markdown(table) if len(table) else None)
 
 
-def reward_explains(replication: pd.DataFrame, configs: dict) -> dict[tuple[str, str], bool]:
-    """(scenario, model) -> True where the claim's interaction is decided in the paper's direction
-    and its condition is the paper's reward: the interaction's column was trained with
-    `rules.reward_normaliser_one` on, the claim's model with it off, every other rule alike."""
-    if "interaction_verdict" not in replication:
-        return {}
+def reward_explains(interactions: pd.DataFrame, configs: dict) -> dict[tuple[str, str], bool]:
+    """(scenario, model) -> True where the claim's interaction (`replication_interactions.csv`) is
+    decided in the paper's direction and its condition is the paper's reward: the condition's
+    column was trained with `rules.reward_normaliser_one` on, the claim's model with it off, every
+    other rule alike."""
     out = {}
-    for _, r in replication[replication["interaction_verdict"] == PAPERS_WAY].iterrows():
-        x, y = configs.get(str(r["interaction"])), configs.get(str(r["model"]))
+    for _, r in interactions[interactions["verdict"] == PAPERS_WAY].iterrows():
+        x, y = configs.get(str(r["condition"])), configs.get(str(r["model"]))
         if x is not None and y is not None:
             a, b = asdict(x.rules), asdict(y.rules)
             if {k for k in a if a[k] != b[k]} == {"reward_normaliser_one"} and a["reward_normaliser_one"]:
@@ -352,12 +365,14 @@ def reward_explains(replication: pd.DataFrame, configs: dict) -> dict[tuple[str,
 
 
 PAPER_POLICIES = Section("paper_policies", {
-    "paper_policies.csv": "per claim of `replication.csv` (and M0): the paper's own policy's CR_total in our "
-                          "evaluator under the paper's rules and under ours (adapted), its rank among our seeds "
-                          "of that model, its Mk - M0 beside Table I's and ours; `explanation`: each unreproduced claim's "
-                          "(the paper's reward, where `replication.csv`'s interaction under the paper's reward is "
-                          "decided in the paper's direction; the paper's own run, seed luck or unexplained)",
-    "paper_policies.md": "the same as Markdown"},
+    "paper_policies.csv": "per claim of `replication.csv` (and M0's row, each Mk - M0 taken from it): CR_total, "
+                          "trimmed as the paper's, of Table I, of our seeds (mean of seed means, `n_seeds`) and of the "
+                          "paper's own policy in our evaluator under the paper's rules and under ours (adapted); how "
+                          "many of our seed means lie below the policy's under either; `explanation`: each "
+                          "unreproduced claim's (the paper's reward, where `replication_interactions.csv`'s "
+                          "interaction under the paper's reward is decided in the paper's direction; the paper's own "
+                          "run, seed luck or unexplained)",
+    "paper_policies.md": "the same as Markdown, with each Mk - M0 and the policy's rank among our seeds"},
     paper_policies_section,
     when="with `--compare-paper` and the paper's policies' rows (results/paper-policies/ beside the --from folder)")
 

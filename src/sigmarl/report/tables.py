@@ -11,6 +11,7 @@ best. The paper's own Table I and Fig. 5 ship as reference data (CD already in r
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
 
@@ -55,6 +56,24 @@ def signed(x: float, digits: int = 3) -> str:
 def seeds_text(n) -> str:
     """A seed count, "–" where there is none."""
     return MISSING if pd.isna(n) else str(int(n))
+
+
+def interval_signed(x: float, lo: float, hi: float, digits: int = 3) -> str:
+    """"+x [+lo, +hi]", each signed (`signed`)."""
+    return f"{signed(x, digits)} [{signed(lo, digits)}, {signed(hi, digits)}]"
+
+
+def markdown_row(cells) -> str:
+    return "| " + " | ".join(map(str, cells)) + " |"
+
+
+def markdown_table(frame: pd.DataFrame, columns: dict[str, str | Callable[[dict], str]], align: str = "") -> list[str]:
+    """`frame` as the lines of a Markdown table: per `columns` item its heading and the frame's
+    column shown as it is, or a function of the row (a dict) that writes the cell; `align`, one
+    letter a column, "r" right-aligned (the rest left)."""
+    rule = "".join("---:|" if a == "r" else "---|" for a in align.ljust(len(columns), "l"))
+    cells = [[f(r) if callable(f) else r[f] for f in columns.values()] for r in frame.to_dict("records")]
+    return [markdown_row(columns), "|" + rule, *map(markdown_row, cells)]
 
 
 def _data(name: str) -> pd.DataFrame:

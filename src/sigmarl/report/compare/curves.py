@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from sigmarl.report.compare.verdicts import Design
-from sigmarl.report.tables import signed
+from sigmarl.report.tables import markdown_table, signed
 from sigmarl.report.training import LAST
 from sigmarl.stats.bootstrap import t_critical
 from sigmarl.stats.engine import Null, difference, holm
@@ -75,15 +75,10 @@ def parting(table: pd.DataFrame) -> dict[tuple[str, str], tuple[int, str] | None
     the same decided verdict, that verdict), or None where the last window is undecided."""
     out: dict[tuple[str, str], tuple[int, str] | None] = {}
     for key, g in table.groupby(["model", "baseline"], sort=False):
-        verdicts = g.sort_values("first")["verdict"].tolist()
-        firsts = g.sort_values("first")["first"].tolist()
-        if not verdicts or verdicts[-1] == "undecided":
-            out[key] = None
-            continue
-        i = len(verdicts) - 1
-        while i > 0 and verdicts[i - 1] == verdicts[-1]:
-            i -= 1
-        out[key] = (int(firsts[i]), verdicts[-1])
+        g = g.sort_values("first")
+        last = g["verdict"].iloc[-1]
+        other = np.flatnonzero(g["verdict"].to_numpy() != last)  # the windows decided otherwise
+        out[key] = None if last == "undecided" else (int(g["first"].iloc[other[-1] + 1 if len(other) else 0]), last)
     return out
 
 
@@ -113,50 +108,47 @@ def paper_seed_table(summary: pd.DataFrame, paper_last: dict[str, float], paper_
     return pd.DataFrame(rows, columns=PAPER_SEED_COLUMNS)
 
 
+def _separation_lines(separation: pd.DataFrame, design: Design, window: int) -> list[str]:
+    firsts, parts = sorted(separation["first"].unique()), parting(separation)
+    records = []
+    for (variant, base), g in separation.groupby(["model", "baseline"], sort=False):
+        at = parts[(variant, base)]
+        cells = {int(r["first"]): _cell(r) for _, r in g.iterrows()}
+        records.append({"variant": variant, "baseline": base,
+                        "parts": "undecided" if at is None else f"{at[1]} from iteration {at[0]}",
+                        **{f"{f}–{f + window - 1}": cells.get(f, "–") for f in firsts}})
+    windows = [f"{f}–{f + window - 1}" for f in firsts]
+    return [f"Training curves compared: mean episode reward per window of {window} iterations, each variant "
+            f"against its baseline ({len(separation)} tests, Holm-corrected; α = {design.alpha:g}):", "",
+            *markdown_table(pd.DataFrame(records), {"Variant": "variant", "Baseline": "baseline", "parts at": "parts",
+                                                    **{w: w for w in windows}}, "lll" + "r" * len(windows)), "",
+            "Each cell: the variant's mean reward minus its baseline's over the window's seeds [the comparison "
+            "engine's 95% interval, unadjusted], * where Holm's correction decides it. parts at: the window from "
+            "which every later one is decided the same way."]
+
+
+def _prediction(r: dict) -> str:
+    return "–" if math.isnan(r["pi_low"]) else f"[{r['pi_low']:.2f}, {r['pi_high']:.2f}]"
+
+
+def _paper_seed_lines(paper_seeds: pd.DataFrame) -> list[str]:
+    return [f"The paper's one seed against ours: final reward (mean of the last {LAST} iterations), our mean and "
+            "the 95% prediction interval for one more seed:", "", *markdown_table(paper_seeds, {
+                "Variant": "variant", "paper's model": "paper_model", "our reward": "reward", "seeds": "seeds",
+                "our mean": lambda r: f"{r['mean']:.2f}", "one more seed (95%)": _prediction,
+                "paper": lambda r: f"{r['paper']:.2f}", "paper's seed": "verdict"}, "lllrrlrl"), "",
+            "within: the paper's value could be one of our seeds; above or below: it could not, at 95%. The paper's "
+            "reward counts every episode whole (its collector carries episodes across batch ends). our reward: "
+            f"{COMPLETE}, the estimate of that definition (`episode_reward_mean_complete`); {CUT}, our logged "
+            "`episode_reward_mean` (runs trained before the estimate), which counts the segment a batch's end cuts "
+            "as an episode and sits 0.5–0.6 below it on a trained policy (docs/deviations.md)."]
+
+
 def curve_verdicts_markdown(separation: pd.DataFrame, paper_seeds: pd.DataFrame, design: Design,
                             window: int = WINDOW) -> str:
-    lines = []
-    if len(separation):
-        lines += [
-            f"Training curves compared: mean episode reward per window of {window} iterations, each variant "
-            f"against its baseline ({len(separation)} tests, Holm-corrected; α = {design.alpha:g}):",
-            "",
-            "| Variant | Baseline | parts at | " + " | ".join(
-                f"{f}–{f + window - 1}" for f in sorted(separation["first"].unique())) + " |",
-            "|---|---|---|" + "---:|" * separation["first"].nunique(),
-        ]
-        parts = parting(separation)
-        firsts = sorted(separation["first"].unique())
-        for (variant, base), g in separation.groupby(["model", "baseline"], sort=False):
-            at = parts[(variant, base)]
-            where = "undecided" if at is None else f"{at[1]} from iteration {at[0]}"
-            cells = {int(r["first"]): _cell(r) for _, r in g.iterrows()}
-            lines.append(f"| {variant} | {base} | {where} | " + " | ".join(cells.get(f, "–") for f in firsts) + " |")
-        lines += [
-            "",
-            "Each cell: the variant's mean reward minus its baseline's over the window's seeds [the comparison "
-            "engine's 95% interval, unadjusted], * where Holm's correction decides it. parts at: the window from which every later one is "
-            "decided the same way.",
-        ]
-    if len(paper_seeds):
-        lines += [
-            "" if lines else None,
-            f"The paper's one seed against ours: final reward (mean of the last {LAST} iterations), our mean and "
-            "the 95% prediction interval for one more seed:",
-            "",
-            "| Variant | paper's model | our reward | seeds | our mean | one more seed (95%) | paper | paper's seed |",
-            "|---|---|---|---:|---:|---|---:|---|",
-        ]
-        for _, r in paper_seeds.iterrows():
-            pi = "–" if math.isnan(r["pi_low"]) else f"[{r['pi_low']:.2f}, {r['pi_high']:.2f}]"
-            lines.append(f"| {r['variant']} | {r['paper_model']} | {r['reward']} | {r['seeds']} | {r['mean']:.2f} | "
-                         f"{pi} | {r['paper']:.2f} | {r['verdict']} |")
-        lines += ["", "within: the paper's value could be one of our seeds; above or below: it could not, at 95%. "
-                  "The paper's reward counts every episode whole (its collector carries episodes across batch ends). "
-                  f"our reward: {COMPLETE}, the estimate of that definition (`episode_reward_mean_complete`); "
-                  f"{CUT}, our logged `episode_reward_mean` (runs trained before the estimate), which counts the "
-                  "segment a batch's end cuts as an episode and sits 0.5–0.6 below it on a trained policy (docs/deviations.md)."]
-    return "\n".join(line for line in lines if line is not None) + "\n" if lines else ""
+    parts = ([_separation_lines(separation, design, window)] if len(separation) else []) + \
+        ([_paper_seed_lines(paper_seeds)] if len(paper_seeds) else [])
+    return "\n\n".join("\n".join(p) for p in parts) + "\n" if parts else ""
 
 
 def _cell(r: pd.Series) -> str:
@@ -164,7 +156,3 @@ def _cell(r: pd.Series) -> str:
         return f"{signed(r['difference'])} (n {r['seeds']})"
     star = "*" if r["verdict"] != "undecided" else ""
     return f"{signed(r['difference'])}{star} [{signed(r['ci_low'])}, {signed(r['ci_high'])}]"
-
-
-
-

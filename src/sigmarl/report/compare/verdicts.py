@@ -1,22 +1,14 @@
-"""Comparisons decided by the comparison engine (`sigmarl.stats.engine`), read as tables: each
-variant against its baseline (`verdict_table`), a factorial study's interactions
-(`interaction_table`), and the findings in sentences (`findings_markdown`); training curves
-compared: `report.compare.curves`.
+"""Comparisons decided by the comparison engine (`sigmarl.stats.engine`; docs/concepts.md, Verdicts),
+read as tables: each variant against its baseline (`verdict_table`), a factorial study's
+interactions (`interaction_table`), and the findings in sentences (`findings_markdown`).
 
-A verdict compares seed means (a seed's mean over its simulations, in the table's units). Per
-comparison, d is the variant's mean of seed means minus its baseline's:
-1. **better** / **worse**: the engine's two-sided p of d = 0, Holm-adjusted over every comparison of
-   the study (variants x scenarios x metrics), is <= alpha; the direction from d's sign and the
-   metric's better direction;
-2. **equivalent within +-margin**: else, the engine's TOST p (the larger of its two one-sided
-   p-values, d <= -margin and d >= margin), Holm-adjusted over the study, is <= alpha;
-3. **undecided**: else, and always with fewer than 2 seeds on a side (no test: p-values and the
-   interval "–", counted as p = 1 in Holm's family). `seeds_needed`: the engine's rule
-   (`engine.seeds_needed`: Welch's t, its noncentral distribution, checked against the engine's own
-   test by simulation) for power `power` at the observed d and the seed means' variances, at Holm's
-   level for the first undecided comparison (alpha / comparisons of that kind still open), the easier
-   of the two decisions.
-The interval of d is the engine's (1 - alpha) bootstrap-t interval, unadjusted.
+Per comparison, d is the variant's mean of seed means minus its baseline's: **better** / **worse**
+where the engine's two-sided p of d = 0, Holm-adjusted over the study (variants x scenarios x
+metrics), is <= alpha, the direction from d's sign and the metric's; else **equivalent within
++-margin** where its two one-sided tests' p, Holm-adjusted, is; else **undecided** (always with
+fewer than 2 seeds a side: no test, p = 1 in Holm's family). `seeds_needed`: the engine's rule
+(Welch's t) for the easier decision at Holm's level of the comparisons still open. The interval of
+d: the engine's (1 - alpha) bootstrap-t interval, unadjusted.
 """
 
 from __future__ import annotations
@@ -30,7 +22,7 @@ import pandas as pd
 
 from sigmarl.errors import SigmarlError
 from sigmarl.metrics import AS, BY_NAME, CR_TOTAL, HEADLINE, METRICS, label, shown_unit
-from sigmarl.report.tables import p_text, seeds_text, signed
+from sigmarl.report.tables import interval_signed, markdown_table, p_text, seeds_text, signed
 from sigmarl.stats.engine import (
     Null,
     Test,
@@ -87,6 +79,9 @@ class Design:
     def one_baseline(self) -> bool:
         return all(self.baseline_of(v) == self.baseline for v in self.compared)
 
+    def scenarios_of(self, rows: pd.DataFrame) -> list[str]:
+        return list(self.scenarios) if self.scenarios is not None else list(dict.fromkeys(rows["scenario"]))
+
 
 def design_of(study, variants: Sequence[str]) -> Design:
     """The verdicts' parameters of a study config (`sigmarl.config.StudyConfig`) for the table's
@@ -116,6 +111,11 @@ def seed_values(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str], list[n
     return out
 
 
+def seed_means(rows: pd.DataFrame, metric: str) -> dict[tuple[str, str], np.ndarray]:
+    """(model, scenario) -> its seeds' means of `metric` (`seed_values`)."""
+    return {k: np.array([g.mean() for g in v]) for k, v in seed_values(rows, metric).items()}
+
+
 @dataclass(frozen=True)
 class Comparison:
     scenario: str
@@ -127,27 +127,23 @@ class Comparison:
 
 def comparisons(rows: pd.DataFrame, design: Design) -> list[Comparison]:
     """Every (scenario, metric, variant) comparison of the design that the rows can make."""
-    scenarios = list(design.scenarios) if design.scenarios is not None else list(dict.fromkeys(rows["scenario"]))
     out = []
     for metric in design.metrics:
-        values = seed_values(rows, metric)
-        for scenario in scenarios:
+        values = seed_means(rows, metric)
+        for scenario in design.scenarios_of(rows):
             for variant in design.compared:
-                base = values.get((design.baseline_of(variant), scenario))
-                mine = values.get((variant, scenario))
-                if not base or not mine:
+                a, b = values.get((variant, scenario)), values.get((design.baseline_of(variant), scenario))
+                if a is None or b is None:
                     continue
-                a, b = np.array([g.mean() for g in mine]), np.array([g.mean() for g in base])
                 test = comparison_test(a, b, design.margins[metric], 1 - design.alpha)
                 variances = tuple(float(np.var(x, ddof=1)) if len(x) > 1 else math.nan for x in (a, b))
                 out.append(Comparison(scenario, metric, variant, test, variances))
     return out
 
 
-def decide(
-    tests: Sequence[Test], directions: Sequence[int], alpha: float | Sequence[float]
-) -> tuple[list[str], np.ndarray, np.ndarray]:
-    """The verdict rules 1-3 over a family: verdicts ('better', 'worse', 'equivalent',
+def decide(tests: Sequence[Test], directions: Sequence[int],
+           alpha: float | Sequence[float]) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """The verdict rules over a family: verdicts ('better', 'worse', 'equivalent',
     'undecided') and the Holm-adjusted difference and equivalence p-values. `alpha` may be
     one level per comparison (a sequential design's nominal levels)."""
     p_diff = holm([t.p_difference for t in tests])
@@ -196,77 +192,75 @@ def margin_unit(metric: str) -> str:
     return "pp" if unit == "%" else unit
 
 
+def within(metric: str, design: Design) -> str:
+    return f"within ±{design.margins[metric]:g} {margin_unit(metric)}"
+
+
 def verdict_label(verdict_: str, metric: str, design: Design) -> str:
-    if verdict_ == "equivalent":
-        return f"equivalent within ±{design.margins[metric]:g} {margin_unit(metric)}"
-    return str(verdict_)
+    return f"equivalent {within(metric, design)}" if verdict_ == "equivalent" else str(verdict_)
+
+
+def _metric(r: dict) -> str:
+    return f"{r['metric']} ({shown_unit(r['metric'])})"
+
+
+def _difference(r: dict) -> str:
+    return interval_signed(r["difference"], r["ci_low"], r["ci_high"])
 
 
 def verdicts_markdown(table: pd.DataFrame, design: Design) -> str:
     """The verdict table as Markdown, with the rules it applied in its notes."""
     against = design.baseline if design.one_baseline else "each model's baseline"
-    ci = f"{100 * (1 - design.alpha):g}% CI"
-    lines = [
-        f"Verdicts against {against} (seed means compared; {len(table)} comparisons, Holm-corrected; "
-        f"α = {design.alpha:g}):",
-        "",
-        f"| Scenario | Metric | Model | seeds | difference [{ci}] | p (Holm) | p equiv. (Holm) | verdict "
-        "| seeds needed |",
-        "|---|---|---|---:|---|---:|---:|---|---:|",
-    ]
-    for _, r in table.iterrows():
-        needed = seeds_text(r["seeds_needed"]) if r["verdict"] == "undecided" else "–"
-        model = r["model"] if design.one_baseline else f"{r['model']} vs {r['baseline']}"
-        lines.append(
-            f"| {r['scenario']} | {r['metric']} ({shown_unit(r['metric'])}) | {model} | {r['seeds']} | "
-            f"{signed(r['difference'])} [{signed(r['ci_low'])}, {signed(r['ci_high'])}] | {p_text(r['p_difference'])} "
-            f"({p_text(r['p_difference_holm'])}) | {p_text(r['p_equivalent_holm'])} | "
-            f"{verdict_label(r['verdict'], r['metric'], design)} | {needed} |")
     margins = ", ".join(f"{k} ±{design.margins[k]:g} {margin_unit(k)}" for k in design.metrics)
-    lines += [
-        "",
-        f"seeds: the model's / {against}'s. difference: model minus {against}, in the table's units (pp: "
-        "percentage points), with the comparison engine's bootstrap-t interval over seed means (– with one seed "
-        "a side). better / worse: the engine's two-sided test of the difference of seed means (each model "
-        f"resampled from its own seeds under the null; docs/concepts.md), Holm-adjusted p ≤ α; equivalent: its "
-        f"two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; otherwise undecided (always "
-        "with fewer than 2 seeds a side). p-values: Monte Carlo error under 0.0005, except where a p lies 4 such "
-        "errors above α (there at most 0.0023; it decides nothing). seeds needed: seeds per model (and per "
-        f"baseline) at which the engine's rule (Welch's t) reaches power {design.power:g} for the easier decision at "
-        "Holm's level, at the observed difference: a post-hoc figure that moves with every seed added; to plan "
-        "for the margin, `sigmarl report --plan`.",
-    ]
+    lines = [f"Verdicts against {against} (seed means compared; {len(table)} comparisons, Holm-corrected; "
+             f"α = {design.alpha:g}):", "", *markdown_table(table, {
+                 "Scenario": "scenario", "Metric": _metric,
+                 "Model": lambda r: r["model"] if design.one_baseline else f"{r['model']} vs {r['baseline']}",
+                 "seeds": "seeds", f"difference [{100 * (1 - design.alpha):g}% CI]": _difference,
+                 "p (Holm)": lambda r: f"{p_text(r['p_difference'])} ({p_text(r['p_difference_holm'])})",
+                 "p equiv. (Holm)": lambda r: p_text(r["p_equivalent_holm"]),
+                 "verdict": lambda r: verdict_label(r["verdict"], r["metric"], design),
+                 "seeds needed": lambda r: seeds_text(r["seeds_needed"]) if r["verdict"] == "undecided" else "–"},
+                 "lllrlrrlr"), "",
+             f"seeds: the model's / {against}'s. difference: model minus {against}, in the table's units (pp: "
+             "percentage points), with the comparison engine's bootstrap-t interval over seed means (– with one seed "
+             "a side). better / worse: the engine's two-sided test of the difference of seed means (each model "
+             f"resampled from its own seeds under the null; docs/concepts.md), Holm-adjusted p ≤ α; equivalent: its "
+             f"two one-sided tests within the margin ({margins}), Holm-adjusted p ≤ α; otherwise undecided (always "
+             "with fewer than 2 seeds a side). p-values: Monte Carlo error under 0.0005, except where a p lies 4 such "
+             "errors above α (there at most 0.0023; it decides nothing). seeds needed: seeds per model (and per "
+             f"baseline) at which the engine's rule (Welch's t) reaches power {design.power:g} for the easier decision at "
+             "Holm's level, at the observed difference: a post-hoc figure that moves with every seed added; to plan "
+             "for the margin, `sigmarl report --plan`."]
     return "\n".join(lines) + "\n"
 
 
 # Interactions of a factorial study (`study.interactions`: name -> [x, y]): x against its baseline
 # set against y against its own, (x - bx) - (y - by) over the seed means of four independent groups
-# (`engine.interaction`). Their own Holm family (every interaction, scenario and metric): **differs**
-# where the adjusted p of a zero interaction is <= alpha; **same within +-margin** by two one-sided
-# tests; otherwise undecided.
-INTERACTION_COLUMNS = ["scenario", "metric", "interaction", "x_difference", "y_difference", "difference", "ci_low",
-                       "ci_high", "p_difference", "p_difference_holm", "p_same_holm", "verdict"]
+# (`engine.interaction`), in a Holm family of their own (every interaction, scenario and metric).
+INTERACTION_COLUMNS = ["scenario", "metric", "interaction", "seeds", "x_difference", "y_difference", "difference",
+                       "ci_low", "ci_high", "p_difference", "p_difference_holm", "p_same_holm", "verdict"]
 
 
 def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
-    """One row per (scenario, metric, interaction) the rows can make, in that order."""
-    scenarios = list(design.scenarios) if design.scenarios is not None else list(dict.fromkeys(rows["scenario"]))
+    """One row per (scenario, metric, interaction) the rows can make, in that order: **differs**
+    where a zero interaction is rejected, **same** within the metric's margin, else **undecided**;
+    `seeds`: the groups' x / its baseline / y / its baseline."""
     records = []
     for metric in design.metrics:
-        values = seed_values(rows, metric)
+        values = seed_means(rows, metric)
         margin = design.margins[metric]
-        for scenario in scenarios:
+        for scenario in design.scenarios_of(rows):
             for name, (x, y) in design.interactions.items():
                 groups = [values.get((m, scenario)) for m in (x, design.baseline_of(x), y, design.baseline_of(y))]
-                if any(not g for g in groups):
+                if any(g is None for g in groups):
                     continue
-                r = interaction(*([g.mean() for g in gs] for gs in groups),
-                                {"zero": Null(0.0), "above": Null(-margin, "greater"), "below": Null(margin, "less")},
-                                1 - design.alpha)
-                means = [float(np.mean([g.mean() for g in gs])) for gs in groups]
+                r = interaction(*groups, {"zero": Null(0.0), "above": Null(-margin, "greater"),
+                                          "below": Null(margin, "less")}, 1 - design.alpha)
                 records.append({
-                    "scenario": scenario, "metric": metric, "interaction": name, "x_difference": means[0] - means[1],
-                    "y_difference": means[2] - means[3], "difference": r.estimate, "ci_low": r.ci_low,
+                    "scenario": scenario, "metric": metric, "interaction": name,
+                    "seeds": "/".join(str(len(g)) for g in groups), "x_difference": groups[0].mean() - groups[1].mean(),
+                    "y_difference": groups[2].mean() - groups[3].mean(), "difference": r.estimate, "ci_low": r.ci_low,
                     "ci_high": r.ci_high, "p_difference": r.p["zero"], "p_same": max(r.p["above"], r.p["below"])})
     frame = pd.DataFrame(records, columns=[*INTERACTION_COLUMNS, "p_same"])
     if len(frame):
@@ -280,75 +274,52 @@ def interaction_table(rows: pd.DataFrame, design: Design) -> pd.DataFrame:
 
 
 def interactions_markdown(table: pd.DataFrame, design: Design) -> str:
-    lines = [
-        f"Interactions: does a comparison change between the two levels? (difference of differences; "
-        f"{len(table)} tests, Holm-corrected; α = {design.alpha:g}):",
-        "",
-        "| Scenario | Metric | Interaction | first difference | second difference | difference of differences "
-        "[95% CI] | p (Holm) | p same (Holm) | verdict |",
-        "|---|---|---|---|---|---|---:|---:|---|",
-    ]
-    for _, r in table.iterrows():
-        x, y = design.interactions[r["interaction"]]
-        verdict_ = f"same within ±{design.margins[r['metric']]:g} {margin_unit(r['metric'])}" \
-            if r["verdict"] == "same" else str(r["verdict"])
-        lines.append(
-            f"| {r['scenario']} | {r['metric']} ({shown_unit(r['metric'])}) | {r['interaction']} | {x} − "
-            f"{design.baseline_of(x)}: {signed(r['x_difference'])} | {y} − {design.baseline_of(y)}: "
-            f"{signed(r['y_difference'])} | {signed(r['difference'])} [{signed(r['ci_low'])}, {signed(r['ci_high'])}] "
-            f"| {p_text(r['p_difference'])} ({p_text(r['p_difference_holm'])}) | {p_text(r['p_same_holm'])} | "
-            f"{verdict_} |")
-    lines += [
-        "",
-        "difference of differences: the first minus the second, over the seed means of the four groups, with "
-        "the comparison engine's bootstrap-t interval (each group resampled from its own seeds; "
-        "docs/concepts.md). differs: a zero interaction rejected at Holm's level; same: two one-sided tests "
-        "within the metric's margin; otherwise undecided (always with fewer than 2 seeds in a group).",
-    ]
+    def side(r: dict, k: int) -> str:
+        v = design.interactions[r["interaction"]][k]
+        return f"{v} − {design.baseline_of(v)}: {signed(r[('x_difference', 'y_difference')[k]])}"
+
+    lines = [f"Interactions: does a comparison change between the two levels? (difference of differences; "
+             f"{len(table)} tests, Holm-corrected; α = {design.alpha:g}):", "", *markdown_table(table, {
+                 "Scenario": "scenario", "Metric": _metric, "Interaction": "interaction",
+                 "first difference": lambda r: side(r, 0), "second difference": lambda r: side(r, 1),
+                 "difference of differences [95% CI]": _difference,
+                 "p (Holm)": lambda r: f"{p_text(r['p_difference'])} ({p_text(r['p_difference_holm'])})",
+                 "p same (Holm)": lambda r: p_text(r["p_same_holm"]),
+                 "verdict": lambda r: f"same {within(r['metric'], design)}" if r["verdict"] == "same" else r["verdict"]},
+                 "llllllrrl"), "",
+             "difference of differences: the first minus the second, over the seed means of the four groups, with "
+             "the comparison engine's bootstrap-t interval (each group resampled from its own seeds; "
+             "docs/concepts.md). differs: a zero interaction rejected at Holm's level; same: two one-sided tests "
+             "within the metric's margin; otherwise undecided (always with fewer than 2 seeds in a group)."]
     return "\n".join(lines) + "\n"
 
 
-
-
 # findings.md: what a study found, in sentences built from its own numbers (a results page quotes
-# it verbatim between markers, scripts/results_blocks.py): the seeds behind each model, the
-# baseline's worst collision rate and its speed range, and each variant's verdicts per scenario.
-TOTAL = CR_TOTAL
-SPEED = AS
-
-
+# it verbatim between markers, scripts/results_blocks.py).
 def _join(names: list[str]) -> str:
     """"A", "A and B", "A, B and C"."""
     return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 
-def _seeds_sentence(summary: pd.DataFrame, models: list[str]) -> str:
-    seeds = summary.groupby("model")["n_seeds"].max()
-    counts = [f"{m} {int(seeds[m])}" for m in models if m in seeds.index]
-    return f"Seeds per model: {', '.join(counts)}."
-
-
-def _baseline_sentence(summary: pd.DataFrame, baseline: str, n_scenarios: int) -> str | None:
+def _baseline_sentence(summary: pd.DataFrame, baseline: str, n_scenarios: int) -> str:
+    """The baseline's worst and best CR_total over the scenarios, and its speed range."""
     mine = summary[summary["model"] == baseline].set_index(["metric", "scenario"])["mean"]
-    if TOTAL not in mine.index.get_level_values(0):
-        return None
-    total = mine[TOTAL]
-    text = (f"{baseline}'s total collision rate is at most {total.max():.2f} % on each of the "
+    if CR_TOTAL not in mine.index.get_level_values(0):
+        return ""
+    total = mine[CR_TOTAL]
+    text = (f" {baseline}'s total collision rate is at most {total.max():.2f} % on each of the "
             f"{n_scenarios} scenarios (worst: {total.idxmax()}, best: {total.idxmin()} at {total.min():.2f} %)")
-    if SPEED in mine.index.get_level_values(0):
-        speed = mine[SPEED]
-        text += f", at an average speed of {speed.min():.2f}–{speed.max():.2f} m/s"
+    if AS in mine.index.get_level_values(0):
+        text += f", at an average speed of {mine[AS].min():.2f}–{mine[AS].max():.2f} m/s"
     return text + "."
 
 
-def _verdict_sentences(verdicts: pd.DataFrame, baseline: str, n_scenarios: int) -> list[str]:
-    """Per variant and metric: the scenarios of each verdict, "on all four" when all agree."""
+def _verdict_sentences(verdicts: pd.DataFrame, n_scenarios: int) -> list[str]:
+    """Per variant and metric: the scenarios of each verdict, "on every scenario" when all agree."""
     out = []
     for (metric, variant), g in verdicts.groupby(["metric", "model"], sort=False):
-        parts = []
-        for decided, scenarios in g.groupby("verdict", sort=False)["scenario"]:
-            where = "on every scenario" if len(scenarios) == n_scenarios else "on " + _join(list(scenarios))
-            parts.append(f"{decided} {where}")
+        parts = [f"{decided} " + ("on every scenario" if len(where) == n_scenarios else "on " + _join(list(where)))
+                 for decided, where in g.groupby("verdict", sort=False)["scenario"]]
         mine, base = str(g["seeds"].iloc[0]).split("/")
         out.append(f"- {variant} against {g['baseline'].iloc[0]} ({label(metric)}, {mine} "
                    f"against {base} seeds): {'; '.join(parts)}.")
@@ -357,16 +328,14 @@ def _verdict_sentences(verdicts: pd.DataFrame, baseline: str, n_scenarios: int) 
 
 def findings_markdown(summary: pd.DataFrame, verdicts: pd.DataFrame | None, models: list[str],
                       baseline: str | None, alpha: float = 0.05) -> str:
-    """The findings as Markdown: a paragraph of figures, then one line per compared variant."""
-    scenarios = list(dict.fromkeys(summary["scenario"]))
-    lines = [_seeds_sentence(summary, models)]
-    if baseline is not None:
-        sentence = _baseline_sentence(summary, baseline, len(scenarios))
-        if sentence:
-            lines.append(sentence)
-    text = " ".join(lines) + "\n"
+    """The findings as Markdown: the seeds behind each model and the baseline's figures in a
+    paragraph, then one line per compared variant and metric."""
+    n_scenarios = summary["scenario"].nunique()
+    seeds = summary.groupby("model")["n_seeds"].max()
+    text = f"Seeds per model: {', '.join(f'{m} {int(seeds[m])}' for m in models if m in seeds.index)}."
+    text += (_baseline_sentence(summary, baseline, n_scenarios) if baseline is not None else "") + "\n"
     if verdicts is not None and len(verdicts):
-        tests = ("Verdicts (the comparison engine's two-sided tests of the difference of seed means, "
-                 f"Holm-adjusted across all {len(verdicts)} comparisons, α = {alpha:g}):")
-        text += "\n" + tests + "\n\n" + "\n".join(_verdict_sentences(verdicts, baseline or "", len(scenarios))) + "\n"
+        text += ("\nVerdicts (the comparison engine's two-sided tests of the difference of seed means, "
+                 f"Holm-adjusted across all {len(verdicts)} comparisons, α = {alpha:g}):\n\n"
+                 + "\n".join(_verdict_sentences(verdicts, n_scenarios)) + "\n")
     return text
