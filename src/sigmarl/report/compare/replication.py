@@ -244,12 +244,9 @@ def summary_line(differences: pd.DataFrame, rankings: pd.DataFrame) -> str:
             parts.append(f"Of the paper's {len(verdicts)} {name}{apart}: {'; '.join(counts)}.")
     if not parts:
         return "No claim of the paper to test."
-    seeds = ""
-    if len(differences):
-        n = differences["seeds"].str.split("/", expand=True).astype(int)
-        low, high = int(n.min().min()), int(n.max().max())
-        seeds = f" ({low} seeds a model)" if low == high else f" ({low}–{high} seeds a model)"
-    return f"Summary{seeds}. " + " ".join(parts)
+    n = differences["seeds"].str.split("/").explode().astype(int)  # every model's seeds
+    span = f"{n.min()}" if n.min() == n.max() else f"{n.min()}–{n.max()}"
+    return "Summary" + (f" ({span} seeds a model)" if len(n) else "") + ". " + " ".join(parts)
 
 
 def _ours(r: dict) -> str:
