@@ -316,20 +316,16 @@ CURVE_VERDICTS = Section("curve_verdicts", {
     curve_verdicts_section, when="when training curves are read", needs=lambda d: d.training is not None)
 
 REPLICATION = Section("replication", {
-    "replication.csv": "per claim of the paper's Table I (each M1..M5 minus M0 CR_total per scenario; Table I's "
+    "replication.csv": "per claim of Table I (M1..M5 minus M0, CR_total trimmed as the paper's, per scenario; "
                        "struck-out values listed apart): the paper's number, ours with its interval, the paper's "
-                       "percentile and Holm-adjusted p among our one-seed differences (`p_seed_luck`), `p_verdict` "
-                       "(the Holm-adjusted p of the comparison engine's one-sided test the verdict rests on; all four "
-                       "in `replication.md`), the verdict, its explanation and the seeds it needs (collision rates "
-                       "trimmed as the paper's)",
-    "replication_rankings.csv": "per scenario: the paper's best composite score's model, the share of whole-seed "
-                                "replicates in which it ranks first here, the model most often first, the verdict",
-    "replication_interactions.csv": "in a study that declares an interaction on a claim's model "
-                                    "(`study=paper_reward`: Mk - M0 under the paper's reward against ours), per claim "
-                                    "(scenario, model): the other condition's column, the four groups' seeds, the "
-                                    "difference of differences with its interval, Holm-adjusted p and verdict (paper's "
-                                    "direction, against it, same, undecided)",
-    "replication.md": "the three files above as Markdown, every p-value of each claim"},
+                       "percentile and Holm-adjusted p among our one-seed differences, `p_verdict` (the Holm-adjusted "
+                       "p of the one-sided test the verdict rests on), the verdict, its explanation, seeds needed",
+    "replication_rankings.csv": "per scenario: the paper's best-scored model, the share of whole-seed replicates "
+                                "in which it ranks first here, the model most often first, the verdict",
+    "replication_interactions.csv": "per claim with a study's interaction on it (`study=paper_reward`): the other "
+                                    "condition's column, the four groups' seeds, the difference of differences, its "
+                                    "interval, Holm-adjusted p and verdict (paper's direction, against it, same, undecided)",
+    "replication.md": "the three files above as Markdown, with all four one-sided p-values of each claim"},
     replication_section, when="with `--compare-paper`, over the columns that are the paper's own models, M0 among them")
 
 def paper_policies_section(d: Draft) -> None:
@@ -365,13 +361,12 @@ def reward_explains(interactions: pd.DataFrame, configs: dict) -> dict[tuple[str
 
 
 PAPER_POLICIES = Section("paper_policies", {
-    "paper_policies.csv": "per claim of `replication.csv` (and M0's row, each Mk - M0 taken from it): CR_total, "
-                          "trimmed as the paper's, of Table I, of our seeds (mean of seed means, `n_seeds`) and of the "
-                          "paper's own policy in our evaluator under the paper's rules and under ours (adapted); how "
-                          "many of our seed means lie below the policy's under either; `explanation`: each "
-                          "unreproduced claim's (the paper's reward, where `replication_interactions.csv`'s "
-                          "interaction under the paper's reward is decided in the paper's direction; the paper's own "
-                          "run, seed luck or unexplained)",
+    "paper_policies.csv": "per claim of `replication.csv` and M0 (each Mk - M0 is a row's minus M0's): CR_total, "
+                          "trimmed as the paper's, of Table I, of our seeds (`n_seeds`) and of the paper's own policy "
+                          "in our evaluator under the paper's rules and under ours (adapted); how many of our seed "
+                          "means lie below it under either; `explanation`, each unreproduced claim's: the paper's "
+                          "reward (its `replication_interactions.csv` row decided in the paper's direction), the "
+                          "paper's own run, seed luck or unexplained",
     "paper_policies.md": "the same as Markdown, with each Mk - M0 and the policy's rank among our seeds"},
     paper_policies_section,
     when="with `--compare-paper` and the paper's policies' rows (results/paper-policies/ beside the --from folder)")
