@@ -66,7 +66,7 @@ def test_few_modules_at_the_top_of_the_package():
 
 # The analysis wing (report/ and stats/): at most this many lines and files. Today's size, a
 # ratchet on the way to 3,500 lines in 25 files: each figure may shrink, never grow.
-WING_LINES, WING_FILES = 4_341, 21
+WING_LINES, WING_FILES = 4_332, 21
 
 
 def test_the_analysis_wing_does_not_grow():
