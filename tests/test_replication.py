@@ -193,3 +193,5 @@ def test_summary_counts_each_verdict():
     rankings = pd.DataFrame({"seeds": [14], "verdict": ["reproduced"]})
     assert summary_line(differences, rankings) == ("Summary (5–14 seeds a model). Of the paper's 3 CR_total differences: "
                                    "1 reversed; 2 undecided. Of the paper's 1 best-score rankings: 1 reproduced.")
+    one = pd.DataFrame({"seeds": ["1/1"], "verdict": ["undecided"]})
+    assert summary_line(one, rankings.iloc[:0]).startswith("Summary (1 seed a model). ")  # the quick study

@@ -245,8 +245,8 @@ def summary_line(differences: pd.DataFrame, rankings: pd.DataFrame) -> str:
     if not parts:
         return "No claim of the paper to test."
     n = differences["seeds"].str.split("/").explode().astype(int)  # every model's seeds
-    span = f"{n.min()}" if n.min() == n.max() else f"{n.min()}–{n.max()}"
-    return "Summary" + (f" ({span} seeds a model)" if len(n) else "") + ". " + " ".join(parts)
+    span = f"{n.min()} seed" if n.max() == 1 else f"{n.min()} seeds" if n.min() == n.max() else f"{n.min()}–{n.max()} seeds"
+    return "Summary" + (f" ({span} a model)" if len(n) else "") + ". " + " ".join(parts)
 
 
 def _ours(r: dict) -> str:
